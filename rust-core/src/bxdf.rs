@@ -1,0 +1,94 @@
+//! The interface every reflectance model implements, and what a model claims about itself.
+
+use crate::error::Error;
+use crate::math::{Rgb, Vec3};
+use crate::params::{ParamSpec, Params};
+use crate::real::Real;
+use serde::Serialize;
+
+/// One importance sample of a BRDF.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample<T> {
+    /// Sampled direction toward the light (away from the surface).
+    pub wi: Vec3<T>,
+    /// `f_r(wi, wo) · cos θi / pdf`, the Monte Carlo weight.
+    pub weight: Rgb<T>,
+    /// Solid-angle density of `wi` (for a delta lobe: the discrete probability of the lobe).
+    pub pdf: T,
+    /// True when `wi` comes from a Dirac delta lobe (no density; `pdf` is the lobe probability).
+    pub delta: bool,
+}
+
+impl<T: Real> BsdfSample<T> {
+    /// A sample from a smooth lobe, given the BRDF value and the density at `wi`.
+    /// Returns `None` when the density is zero or not finite, or the weight is not finite.
+    #[inline]
+    #[must_use]
+    pub fn from_eval(wi: Vec3<T>, f: Rgb<T>, pdf: T) -> Option<Self> {
+        if !(pdf > T::zero()) || !pdf.is_finite() {
+            return None;
+        }
+        let weight = f * (wi.z / pdf);
+        if !weight.is_finite() {
+            return None;
+        }
+        Some(Self {
+            wi,
+            weight,
+            pdf,
+            delta: false,
+        })
+    }
+}
+
+/// A reflectance model: the BRDF, its sampler and the sampler's density, side by side.
+///
+/// The caller (see [`crate::models::Model`]) guarantees unit, finite directions. Methods must
+/// still return zero (never NaN) for directions at or below the horizon.
+pub trait Bxdf {
+    /// `f_r(wi, wo)` in 1/sr, without the cosine.
+    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T>;
+    /// Solid-angle density with which [`Bxdf::sample`] returns `wi` for this `wo`.
+    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T;
+    /// Samples `wi` for `wo` from three uniform numbers (first one picks a lobe).
+    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>>;
+}
+
+/// What a model claims; `lacquer check` verifies each claim and reports the others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Claims {
+    /// `f(wi, wo) = f(wo, wi)` for all directions.
+    pub reciprocal: bool,
+    /// Directional albedo `∫ f cos θi dωi ≤ 1` for every `wo` and every valid parameter set.
+    pub energy_conserving: bool,
+    /// `sample` draws from exactly the density `pdf` reports (χ² test applies).
+    pub sampled: bool,
+}
+
+/// A registered model: its name, documentation, parameters, claims and constructor.
+#[derive(Clone, Copy)]
+pub struct ModelInfo {
+    /// Name used in material JSON (`"model": "..."`).
+    pub name: &'static str,
+    /// One-line description.
+    pub summary: &'static str,
+    /// The paper the formula comes from.
+    pub reference: &'static str,
+    /// Parameter specifications.
+    pub params: &'static [ParamSpec],
+    /// What the model claims.
+    pub claims: Claims,
+    /// Extra parameter sets (JSON objects without `"model"`) the checks run besides the
+    /// defaults, chosen to cover the model's regimes (rough/smooth, anisotropic, ...).
+    pub check_params: &'static [&'static str],
+    /// Builds the model from validated parameters (cross-parameter checks happen here).
+    pub build: fn(&Params) -> Result<crate::models::Model, Error>,
+}
+
+impl std::fmt::Debug for ModelInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ModelInfo")
+            .field("name", &self.name)
+            .finish_non_exhaustive()
+    }
+}

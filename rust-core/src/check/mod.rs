@@ -1,0 +1,452 @@
+//! Checks that ship with the library: reciprocity, white-furnace energy, χ² goodness of fit
+//! of the sampler against its pdf, pdf normalisation, sample/eval consistency, a hard-case
+//! grid (grazing angles, degenerate half vectors, parameter extremes, bad inputs), and the
+//! f32 fast path against the f64 reference.
+//!
+//! Each result is compared with what the model *claims* ([`crate::Claims`]): a claim that
+//! fails is a failure; a property the model does not claim is measured and reported, not
+//! hidden. Finiteness and non-negativity are required of every model.
+
+mod chi2;
+mod furnace;
+mod hard_cases;
+mod precision;
+mod reciprocity;
+pub mod stats;
+
+pub use chi2::{chi2_test, Chi2Case};
+pub use furnace::{furnace, FurnaceReport};
+pub use hard_cases::{hard_cases, parameter_extremes, HardCaseReport};
+pub use precision::{precision, PrecisionReport};
+pub use reciprocity::{reciprocity, ReciprocityReport};
+
+use crate::bxdf::{Claims, ModelInfo};
+use crate::error::Error;
+use crate::material::Material;
+use crate::math::Vec3;
+use crate::params::{Default, ParamKind, Params};
+use crate::rng::Pcg32;
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+/// How hard the checks look. [`CheckConfig::standard`] is what `lacquer check` runs.
+#[derive(Clone, Debug, Serialize)]
+pub struct CheckConfig {
+    /// Seed of every random stream (results are deterministic per seed).
+    pub seed: u64,
+    /// Random direction pairs for reciprocity (adversarial pairs are added).
+    pub reciprocity_pairs: usize,
+    /// Largest relative reciprocity error accepted from a model that claims reciprocity.
+    pub reciprocity_tolerance: f64,
+    /// `cos θo` values of the white-furnace test.
+    pub furnace_cos: Vec<f64>,
+    /// Azimuths `φo` of the white-furnace test (radians).
+    pub furnace_phi: Vec<f64>,
+    /// Samples per outgoing direction in the furnace (two strategies each).
+    pub furnace_samples: usize,
+    /// Largest albedo accepted from an energy-conserving model (beyond 3σ of MC noise).
+    pub furnace_tolerance: f64,
+    /// `(cos θo, φo)` of the χ² tests.
+    pub chi2_directions: Vec<(f64, f64)>,
+    /// Samples per χ² test.
+    pub chi2_samples: usize,
+    /// Bins in `cos θ` (equal solid angle).
+    pub chi2_theta_bins: usize,
+    /// Bins in `φ`.
+    pub chi2_phi_bins: usize,
+    /// Family-wise significance level of the χ² tests of one material (Šidák-corrected).
+    pub significance: f64,
+    /// Random parameter sets per model (reciprocity, furnace and hard cases; no χ²).
+    pub random_param_sets: usize,
+    /// Largest f32-vs-f64 relative error accepted.
+    pub precision_tolerance: f64,
+}
+
+impl CheckConfig {
+    /// The configuration `lacquer check` uses.
+    #[must_use]
+    pub fn standard() -> Self {
+        Self {
+            seed: 0x1acc_0e12,
+            reciprocity_pairs: 20_000,
+            reciprocity_tolerance: 1e-6,
+            furnace_cos: vec![1.0, 0.9, 0.7, 0.5, 0.3, 0.15, 0.05, 0.01],
+            furnace_phi: vec![0.0, 0.25 * std::f64::consts::PI, 0.5 * std::f64::consts::PI],
+            furnace_samples: 50_000,
+            furnace_tolerance: 1e-3,
+            chi2_directions: vec![(0.95, 0.3), (0.6, 1.1), (0.2, 2.5)],
+            chi2_samples: 1_000_000,
+            chi2_theta_bins: 32,
+            chi2_phi_bins: 64,
+            significance: 0.01,
+            random_param_sets: 6,
+            precision_tolerance: 1e-3,
+        }
+    }
+
+    /// A cheaper configuration for unit tests and quick looks.
+    #[must_use]
+    pub fn quick() -> Self {
+        Self {
+            reciprocity_pairs: 4_000,
+            furnace_cos: vec![1.0, 0.7, 0.3, 0.05],
+            furnace_phi: vec![0.0, 0.5 * std::f64::consts::PI],
+            furnace_samples: 20_000,
+            chi2_samples: 300_000,
+            chi2_theta_bins: 24,
+            chi2_phi_bins: 48,
+            random_param_sets: 3,
+            ..Self::standard()
+        }
+    }
+}
+
+/// Outcome of one check against one claim.
+#[derive(Clone, Debug, Serialize)]
+pub struct Verdict {
+    /// Which check (`reciprocity`, `energy`, `chi2`, `pdf_integral`, `sample_consistency`,
+    /// `hard_cases`, `precision`).
+    pub check: &'static str,
+    /// `pass`, `fail`, or `reported` (measured, not claimed by the model).
+    pub status: &'static str,
+    /// The measured figure.
+    pub value: f64,
+    /// The limit it was compared with.
+    pub limit: f64,
+    /// What the figure is.
+    pub note: String,
+}
+
+impl Verdict {
+    fn new(
+        check: &'static str,
+        claimed: bool,
+        ok: bool,
+        value: f64,
+        limit: f64,
+        note: impl Into<String>,
+    ) -> Self {
+        let status = match (claimed, ok) {
+            (true, true) => "pass",
+            (true, false) => "fail",
+            (false, _) => "reported",
+        };
+        Self {
+            check,
+            status,
+            value,
+            limit,
+            note: note.into(),
+        }
+    }
+    /// True unless this is a failed claim.
+    #[must_use]
+    pub fn ok(&self) -> bool {
+        self.status != "fail"
+    }
+}
+
+/// Every check on one material (one parameter set).
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialReport {
+    /// The material, every parameter included.
+    pub material: Value,
+    /// Why this parameter set is checked: `defaults`, `check set`, `random`.
+    pub origin: &'static str,
+    /// Reciprocity.
+    pub reciprocity: ReciprocityReport,
+    /// White furnace.
+    pub furnace: FurnaceReport,
+    /// χ² tests (empty for random parameter sets).
+    pub chi2: Vec<Chi2Case>,
+    /// Hard-case direction grid.
+    pub hard_cases: HardCaseReport,
+    /// f32 against f64.
+    pub precision: PrecisionReport,
+    /// Verdicts against the model's claims.
+    pub verdicts: Vec<Verdict>,
+}
+
+impl MaterialReport {
+    /// True when no claimed property failed.
+    #[must_use]
+    pub fn passed(&self) -> bool {
+        self.verdicts.iter().all(Verdict::ok)
+    }
+}
+
+/// Every check on one model: defaults, its check sets, random parameter sets and extremes.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelReport {
+    /// Model name.
+    pub model: &'static str,
+    /// What the model claims.
+    pub claims: Claims,
+    /// One report per checked parameter set.
+    pub materials: Vec<MaterialReport>,
+    /// Hard cases over parameter extremes (each parameter and each pair at its min/max).
+    pub parameter_extremes: HardCaseReport,
+    /// Summary over all parameter sets.
+    pub summary: Summary,
+    /// True when every claim held everywhere and no hard case misbehaved.
+    pub passed: bool,
+}
+
+/// The worst figures over all parameter sets of a model.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Summary {
+    /// Largest relative reciprocity error.
+    pub worst_reciprocity: f64,
+    /// Largest albedo seen in the furnace.
+    pub furnace_max: f64,
+    /// Smallest albedo seen in the furnace.
+    pub furnace_min: f64,
+    /// Smallest χ² p-value.
+    pub chi2_min_p: f64,
+    /// Largest pdf integral.
+    pub pdf_integral_max: f64,
+    /// NaN + Inf + negative outputs over all hard cases.
+    pub hard_case_failures: usize,
+    /// Largest f32-vs-f64 relative error.
+    pub precision_max: f64,
+}
+
+/// Uniform direction on the upper hemisphere from the check RNG.
+pub(crate) fn random_direction(rng: &mut Pcg32) -> Vec3<f64> {
+    crate::sampling::uniform_hemisphere(rng.uniform().max(1e-12), rng.uniform())
+}
+
+/// Direction with the given `cos θ` and `φ`.
+pub(crate) fn direction(cos_theta: f64, phi: f64) -> Vec3<f64> {
+    let s = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    Vec3::new(s * phi.cos(), s * phi.sin(), cos_theta)
+}
+
+/// Runs every check on one material and judges it against `claims`.
+#[must_use]
+pub fn check_material(
+    m: &Material,
+    cfg: &CheckConfig,
+    origin: &'static str,
+    run_chi2: bool,
+) -> MaterialReport {
+    let claims = m.info().claims;
+    let reciprocity = reciprocity(m, cfg);
+    let furnace = furnace(m, cfg);
+    let chi2 = if run_chi2 && claims.sampled {
+        chi2_test(m, cfg)
+    } else {
+        Vec::new()
+    };
+    let hard_cases = hard_cases(m);
+    let precision = precision(m, cfg);
+
+    let mut verdicts = vec![
+        Verdict::new(
+            "reciprocity",
+            claims.reciprocal,
+            reciprocity.max_relative_error <= cfg.reciprocity_tolerance,
+            reciprocity.max_relative_error,
+            cfg.reciprocity_tolerance,
+            "max |f(wi,wo) − f(wo,wi)| / max(|f|, 1e-10) over random and adversarial pairs",
+        ),
+        Verdict::new(
+            "energy",
+            claims.energy_conserving,
+            furnace.max_lower_bound <= 1.0 + cfg.furnace_tolerance,
+            furnace.max_albedo,
+            1.0 + cfg.furnace_tolerance,
+            "max over wo of the directional albedo ∫ f cos dωi (test uses mean − 3σ)",
+        ),
+        Verdict::new(
+            "hard_cases",
+            true,
+            hard_cases.failures() == 0,
+            hard_cases.failures() as f64,
+            0.0,
+            "NaN, Inf or negative outputs on the hard-case direction grid",
+        ),
+        Verdict::new(
+            "precision",
+            true,
+            precision.max_relative_error <= cfg.precision_tolerance,
+            precision.max_relative_error,
+            cfg.precision_tolerance,
+            "max f32-vs-f64 relative error of eval and pdf (floor 1e-4 of the peak value)",
+        ),
+    ];
+    if !chi2.is_empty() {
+        let alpha = 1.0 - (1.0 - cfg.significance).powf(1.0 / chi2.len() as f64);
+        let min_p = chi2.iter().map(|c| c.p_value).fold(1.0, f64::min);
+        verdicts.push(Verdict::new(
+            "chi2",
+            true,
+            min_p >= alpha,
+            min_p,
+            alpha,
+            "smallest χ² p-value (Šidák-corrected level)",
+        ));
+        let max_int = chi2.iter().map(|c| c.pdf_integral).fold(0.0, f64::max);
+        verdicts.push(Verdict::new(
+            "pdf_integral",
+            true,
+            max_int <= 1.0 + 1e-3,
+            max_int,
+            1.0 + 1e-3,
+            "∫ pdf dωi over the hemisphere",
+        ));
+        let max_cons = chi2
+            .iter()
+            .map(|c| c.sample_consistency)
+            .fold(0.0, f64::max);
+        verdicts.push(Verdict::new(
+            "sample_consistency",
+            true,
+            max_cons <= 1e-4,
+            max_cons,
+            1e-4,
+            "max relative gap between sample()'s pdf/weight and pdf()/eval()",
+        ));
+    }
+    MaterialReport {
+        material: m.to_json(),
+        origin,
+        reciprocity,
+        furnace,
+        chi2,
+        hard_cases,
+        precision,
+        verdicts,
+    }
+}
+
+/// Draws a random valid parameter set (log-uniform for ranges spanning over two decades).
+fn random_params(info: &'static ModelInfo, rng: &mut Pcg32) -> Map<String, Value> {
+    let mut obj = Map::new();
+    for spec in info.params {
+        let draw = |rng: &mut Pcg32| -> f64 {
+            if spec.min > 0.0 && spec.max / spec.min > 100.0 {
+                (spec.min.ln() + rng.uniform() * (spec.max.ln() - spec.min.ln()))
+                    .exp()
+                    .clamp(spec.min, spec.max)
+            } else {
+                rng.range(spec.min, spec.max)
+            }
+        };
+        let v = match spec.kind {
+            ParamKind::Scalar => Value::from(draw(rng)),
+            ParamKind::Color => Value::from(vec![draw(rng), draw(rng), draw(rng)]),
+            ParamKind::Integer => Value::from(draw(rng).round() as i64),
+            ParamKind::Bool => Value::from(rng.uniform() < 0.5),
+            ParamKind::Choice(c) => {
+                Value::from(c[(rng.uniform() * c.len() as f64) as usize % c.len()])
+            }
+            ParamKind::Json => match spec.default {
+                Default::Json(s) => serde_json::from_str(s).expect("valid default JSON"),
+                _ => continue,
+            },
+        };
+        obj.insert(spec.name.to_string(), v);
+    }
+    obj
+}
+
+/// Builds a material of `info` from a parameter object.
+pub fn build(info: &'static ModelInfo, obj: &Map<String, Value>) -> Result<Material, Error> {
+    Material::from_params(info, Params::parse(info.name, info.params, obj)?)
+}
+
+/// Runs every check on a model: defaults, its declared check sets, random parameter sets
+/// and the parameter-extremes hard cases.
+#[must_use]
+pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
+    let mut materials = Vec::new();
+    let mut build_errors = Vec::new();
+    match Material::default_of(info) {
+        Ok(m) => materials.push(check_material(&m, cfg, "defaults", true)),
+        Err(e) => build_errors.push(format!("defaults: {e}")),
+    }
+    for text in info.check_params {
+        let obj: Map<String, Value> =
+            serde_json::from_str(text).expect("check_params are JSON objects");
+        match build(info, &obj) {
+            Ok(m) => materials.push(check_material(&m, cfg, "check set", true)),
+            Err(e) => build_errors.push(format!("{text}: {e}")),
+        }
+    }
+    let mut rng = Pcg32::new(cfg.seed, 0x5eed);
+    let mut drawn = 0;
+    let mut attempts = 0;
+    while drawn < cfg.random_param_sets && attempts < cfg.random_param_sets * 10 {
+        attempts += 1;
+        let obj = random_params(info, &mut rng);
+        // Cross-parameter constraints may reject a draw; that is a clear error, not a failure.
+        if let Ok(m) = build(info, &obj) {
+            materials.push(check_material(&m, cfg, "random", false));
+            drawn += 1;
+        }
+    }
+    let mut extremes = parameter_extremes(info);
+    extremes.build_errors.extend(build_errors.iter().cloned());
+
+    let mut summary = Summary {
+        furnace_min: f64::INFINITY,
+        chi2_min_p: 1.0,
+        ..Summary::default()
+    };
+    for r in &materials {
+        summary.worst_reciprocity = summary
+            .worst_reciprocity
+            .max(r.reciprocity.max_relative_error);
+        summary.furnace_max = summary.furnace_max.max(r.furnace.max_albedo);
+        summary.furnace_min = summary.furnace_min.min(r.furnace.min_albedo);
+        for c in &r.chi2 {
+            summary.chi2_min_p = summary.chi2_min_p.min(c.p_value);
+            summary.pdf_integral_max = summary.pdf_integral_max.max(c.pdf_integral);
+        }
+        summary.hard_case_failures += r.hard_cases.failures();
+        summary.precision_max = summary.precision_max.max(r.precision.max_relative_error);
+    }
+    summary.hard_case_failures += extremes.failures();
+    let passed = build_errors.is_empty()
+        && !materials.is_empty()
+        && extremes.failures() == 0
+        && materials.iter().all(MaterialReport::passed);
+    ModelReport {
+        model: info.name,
+        claims: info.claims,
+        materials,
+        parameter_extremes: extremes,
+        summary,
+        passed,
+    }
+}
+
+/// Checks every registered model, spreading models over the available cores.
+#[must_use]
+pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
+    let infos = crate::models::all();
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(infos.len())
+        .max(1);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut results: Vec<Option<ModelReport>> = vec![None; infos.len()];
+    let slots = std::sync::Mutex::new(&mut results);
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if i >= infos.len() {
+                    break;
+                }
+                let report = check_model(infos[i], cfg);
+                slots.lock().expect("no panics while holding the lock")[i] = Some(report);
+            });
+        }
+    });
+    results
+        .into_iter()
+        .map(|r| r.expect("every model checked"))
+        .collect()
+}

@@ -1,0 +1,132 @@
+//! The local shading frame: z is the normal, x the tangent (anisotropy axis), y = z × x.
+//!
+//! Both directions point away from the surface. These helpers are the only place where
+//! spherical coordinates are derived from a direction.
+
+use crate::math::Vec3;
+use crate::real::Real;
+
+/// `cos θ` of a direction: its z component.
+#[inline(always)]
+#[must_use]
+pub fn cos_theta<T: Real>(w: Vec3<T>) -> T {
+    w.z
+}
+
+/// `cos² θ`.
+#[inline(always)]
+#[must_use]
+pub fn cos2_theta<T: Real>(w: Vec3<T>) -> T {
+    w.z * w.z
+}
+
+/// `sin² θ`, never negative.
+#[inline(always)]
+#[must_use]
+pub fn sin2_theta<T: Real>(w: Vec3<T>) -> T {
+    (w.x * w.x + w.y * w.y).max(T::zero())
+}
+
+/// `sin θ`.
+#[inline(always)]
+#[must_use]
+pub fn sin_theta<T: Real>(w: Vec3<T>) -> T {
+    sin2_theta(w).sqrt()
+}
+
+/// `tan² θ` (infinite at the horizon).
+#[inline(always)]
+#[must_use]
+pub fn tan2_theta<T: Real>(w: Vec3<T>) -> T {
+    sin2_theta(w) / cos2_theta(w)
+}
+
+/// `cos φ`, taken as 1 at the pole where φ is undefined.
+#[inline(always)]
+#[must_use]
+pub fn cos_phi<T: Real>(w: Vec3<T>) -> T {
+    let s = sin_theta(w);
+    if s == T::zero() {
+        T::one()
+    } else {
+        (w.x / s).clamp_to(-T::one(), T::one())
+    }
+}
+
+/// `sin φ`, taken as 0 at the pole.
+#[inline(always)]
+#[must_use]
+pub fn sin_phi<T: Real>(w: Vec3<T>) -> T {
+    let s = sin_theta(w);
+    if s == T::zero() {
+        T::zero()
+    } else {
+        (w.y / s).clamp_to(-T::one(), T::one())
+    }
+}
+
+/// True when both directions lie strictly above the surface (the only case a one-sided
+/// opaque BRDF is non-zero).
+#[inline(always)]
+#[must_use]
+pub fn both_above<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> bool {
+    wi.z > T::zero() && wo.z > T::zero()
+}
+
+/// Mirror reflection of `w` about the normal `n` (both pointing away from the surface).
+#[inline(always)]
+#[must_use]
+pub fn reflect<T: Real>(w: Vec3<T>, n: Vec3<T>) -> Vec3<T> {
+    n * (T::of(2.0) * w.dot(n)) - w
+}
+
+/// Mirror direction of `w` about the geometric normal z.
+#[inline(always)]
+#[must_use]
+pub fn mirror_z<T: Real>(w: Vec3<T>) -> Vec3<T> {
+    Vec3::new(-w.x, -w.y, w.z)
+}
+
+/// The unit half vector `(wi + wo)/|wi + wo|`, or `None` when it is undefined
+/// (`wi = -wo`, or a non-finite sum).
+#[inline(always)]
+#[must_use]
+pub fn half_vector<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> Option<Vec3<T>> {
+    let h = wi + wo;
+    let len2 = h.length_squared();
+    if len2 > T::zero() && len2.is_finite() {
+        Some(h / len2.sqrt())
+    } else {
+        None
+    }
+}
+
+/// Builds a unit direction from spherical coordinates.
+#[inline]
+#[must_use]
+pub fn spherical_direction<T: Real>(sin_theta: T, cos_theta: T, phi: T) -> Vec3<T> {
+    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// An orthonormal basis around a unit vector `n` (Duff et al. 2017, branchless).
+#[inline]
+#[must_use]
+pub fn basis_around<T: Real>(n: Vec3<T>) -> (Vec3<T>, Vec3<T>) {
+    let sign = if n.z >= T::zero() {
+        T::one()
+    } else {
+        -T::one()
+    };
+    let a = -T::one() / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = Vec3::new(T::one() + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    (s, t)
+}
+
+/// Expresses a direction given in the frame `(s, t, n)` in that frame's parent.
+#[inline]
+#[must_use]
+pub fn from_basis<T: Real>(v: Vec3<T>, s: Vec3<T>, t: Vec3<T>, n: Vec3<T>) -> Vec3<T> {
+    s * v.x + t * v.y + n * v.z
+}

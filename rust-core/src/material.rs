@@ -1,0 +1,155 @@
+//! [`Material`]: a validated model built from JSON, with input sanitising.
+//!
+//! This is the front door for every host (CLI, C ABI, Python). Directions that are not
+//! finite give zero (and `None` for sampling); directions that are finite but not unit
+//! length are normalised first.
+
+use crate::bxdf::{BsdfSample, ModelInfo};
+use crate::error::Error;
+use crate::math::{Rgb, Vec3};
+use crate::models::{self, Model};
+use crate::params::Params;
+use crate::presets;
+use crate::real::Real;
+use serde_json::Value;
+
+/// A reflectance model with validated parameters. Immutable and `Sync`: share it freely.
+#[derive(Clone, Debug)]
+pub struct Material {
+    model: Model,
+    info: &'static ModelInfo,
+    params: Params,
+}
+
+/// Returns a unit version of `w`, or `None` if it is not finite or has zero length.
+#[inline]
+fn sanitize<T: Real>(w: Vec3<T>) -> Option<Vec3<T>> {
+    let l2 = w.length_squared();
+    if !l2.is_finite() || !(l2 > T::zero()) {
+        return None;
+    }
+    if (l2 - T::one()).abs() > T::of(64.0) * T::epsilon() {
+        Some(w / l2.sqrt())
+    } else {
+        Some(w)
+    }
+}
+
+impl Material {
+    /// Parses material JSON: `{"model": ..., params...}` or `{"preset": "name"}`.
+    pub fn from_json(text: &str) -> Result<Self, Error> {
+        let v: Value = serde_json::from_str(text).map_err(|e| Error::Json(e.to_string()))?;
+        Self::from_value(&v)
+    }
+
+    /// Builds a material from parsed JSON.
+    pub fn from_value(v: &Value) -> Result<Self, Error> {
+        let obj = v
+            .as_object()
+            .ok_or_else(|| Error::Shape("expected a JSON object".into()))?;
+        if let Some(p) = obj.get("preset") {
+            let name = p.as_str().ok_or_else(|| Error::WrongType {
+                param: "preset".into(),
+                expected: "a string",
+            })?;
+            if obj.len() > 1 {
+                return Err(Error::Shape("{\"preset\": ...} takes no other keys".into()));
+            }
+            return Self::preset(name);
+        }
+        let name = obj
+            .get("model")
+            .ok_or_else(|| Error::Shape("missing \"model\" (or \"preset\") key".into()))?
+            .as_str()
+            .ok_or_else(|| Error::WrongType {
+                param: "model".into(),
+                expected: "a string",
+            })?;
+        let info = models::find(name).ok_or_else(|| Error::UnknownModel {
+            name: name.to_string(),
+            known: models::all().iter().map(|m| m.name).collect(),
+        })?;
+        let params = Params::parse(info.name, info.params, obj)?;
+        Self::from_params(info, params)
+    }
+
+    /// Builds a named preset.
+    pub fn preset(name: &str) -> Result<Self, Error> {
+        let p = presets::find(name).ok_or_else(|| Error::UnknownPreset {
+            name: name.to_string(),
+        })?;
+        Self::from_json(p.json)
+    }
+
+    /// Builds a model from already validated parameters.
+    pub fn from_params(info: &'static ModelInfo, params: Params) -> Result<Self, Error> {
+        let model = (info.build)(&params)?;
+        Ok(Self {
+            model,
+            info,
+            params,
+        })
+    }
+
+    /// A model with all its defaults.
+    pub fn default_of(info: &'static ModelInfo) -> Result<Self, Error> {
+        Self::from_params(info, Params::defaults(info.name, info.params))
+    }
+
+    /// The model's registry entry.
+    #[must_use]
+    pub fn info(&self) -> &'static ModelInfo {
+        self.info
+    }
+
+    /// The model itself (no input sanitising).
+    #[must_use]
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Validated parameters, defaults included.
+    #[must_use]
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The complete material as JSON (model and every parameter).
+    #[must_use]
+    pub fn to_json(&self) -> Value {
+        self.params.to_json()
+    }
+
+    /// `f_r(wi, wo)`; zero for non-finite or zero-length directions and below the surface.
+    #[inline]
+    #[must_use]
+    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        match (sanitize(wi), sanitize(wo)) {
+            (Some(wi), Some(wo)) => self.model.eval(wi, wo),
+            _ => Rgb::zero(),
+        }
+    }
+
+    /// Density of [`Material::sample`] choosing `wi` given `wo`.
+    #[inline]
+    #[must_use]
+    pub fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        match (sanitize(wi), sanitize(wo)) {
+            (Some(wi), Some(wo)) => self.model.pdf(wi, wo),
+            _ => T::zero(),
+        }
+    }
+
+    /// Importance-samples `wi` given `wo` and three uniform numbers in `[0, 1)`.
+    #[inline]
+    #[must_use]
+    pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+        let wo = sanitize(wo)?;
+        if !u.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        let one_minus = crate::sampling::one_minus_epsilon::<T>();
+        let u = u.map(|x| x.clamp_to(T::zero(), one_minus));
+        self.model.sample(wo, u)
+    }
+}

@@ -1,0 +1,290 @@
+//! Small vector and colour types, generic over [`Real`].
+
+use crate::real::Real;
+use serde::Serialize;
+use std::ops::{Add, AddAssign, Div, Index, Mul, MulAssign, Neg, Sub};
+
+/// A 3-vector (directions in the local shading frame, positions).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Vec3<T> {
+    /// Tangent component.
+    pub x: T,
+    /// Bitangent component.
+    pub y: T,
+    /// Normal component.
+    pub z: T,
+}
+
+impl<T: Real> Vec3<T> {
+    /// Builds a vector from its components.
+    #[inline]
+    #[must_use]
+    pub fn new(x: T, y: T, z: T) -> Self {
+        Self { x, y, z }
+    }
+    /// Builds a vector from `f64` components.
+    #[inline]
+    #[must_use]
+    pub fn from_f64(x: f64, y: f64, z: f64) -> Self {
+        Self::new(T::of(x), T::of(y), T::of(z))
+    }
+    /// The zero vector.
+    #[inline]
+    #[must_use]
+    pub fn zero() -> Self {
+        Self::new(T::zero(), T::zero(), T::zero())
+    }
+    /// Converts to another precision.
+    #[inline]
+    #[must_use]
+    pub fn cast<U: Real>(self) -> Vec3<U> {
+        Vec3::new(
+            U::of(self.x.f64()),
+            U::of(self.y.f64()),
+            U::of(self.z.f64()),
+        )
+    }
+    /// Dot product.
+    #[inline]
+    #[must_use]
+    pub fn dot(self, o: Self) -> T {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    /// Cross product.
+    #[inline]
+    #[must_use]
+    pub fn cross(self, o: Self) -> Self {
+        Self::new(
+            self.y * o.z - self.z * o.y,
+            self.z * o.x - self.x * o.z,
+            self.x * o.y - self.y * o.x,
+        )
+    }
+    /// Squared length.
+    #[inline]
+    #[must_use]
+    pub fn length_squared(self) -> T {
+        self.dot(self)
+    }
+    /// Length.
+    #[inline]
+    #[must_use]
+    pub fn length(self) -> T {
+        self.length_squared().sqrt()
+    }
+    /// Unit vector in the same direction (NaN for the zero vector).
+    #[inline]
+    #[must_use]
+    pub fn normalize(self) -> Self {
+        self * (T::one() / self.length())
+    }
+    /// True when every component is finite.
+    #[inline]
+    #[must_use]
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+    /// Component-wise fused `self * s + o`.
+    #[inline]
+    #[must_use]
+    pub fn scale_add(self, s: T, o: Self) -> Self {
+        Self::new(self.x * s + o.x, self.y * s + o.y, self.z * s + o.z)
+    }
+}
+
+impl<T: Real> Add for Vec3<T> {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
+    }
+}
+impl<T: Real> Sub for Vec3<T> {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+impl<T: Real> Neg for Vec3<T> {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        Self::new(-self.x, -self.y, -self.z)
+    }
+}
+impl<T: Real> Mul<T> for Vec3<T> {
+    type Output = Self;
+    #[inline]
+    fn mul(self, s: T) -> Self {
+        Self::new(self.x * s, self.y * s, self.z * s)
+    }
+}
+impl<T: Real> Div<T> for Vec3<T> {
+    type Output = Self;
+    #[inline]
+    fn div(self, s: T) -> Self {
+        Self::new(self.x / s, self.y / s, self.z / s)
+    }
+}
+
+/// A linear RGB triple (Rec.709 primaries): BRDF values, albedos, reflectances.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Rgb<T> {
+    /// Red.
+    pub r: T,
+    /// Green.
+    pub g: T,
+    /// Blue.
+    pub b: T,
+}
+
+impl<T: Real> Rgb<T> {
+    /// Builds a colour from its channels.
+    #[inline]
+    #[must_use]
+    pub fn new(r: T, g: T, b: T) -> Self {
+        Self { r, g, b }
+    }
+    /// A grey with all three channels equal.
+    #[inline]
+    #[must_use]
+    pub fn splat(v: T) -> Self {
+        Self::new(v, v, v)
+    }
+    /// Black.
+    #[inline]
+    #[must_use]
+    pub fn zero() -> Self {
+        Self::splat(T::zero())
+    }
+    /// Builds a colour from `[f64; 3]`.
+    #[inline]
+    #[must_use]
+    pub fn from_array(c: [f64; 3]) -> Self {
+        Self::new(T::of(c[0]), T::of(c[1]), T::of(c[2]))
+    }
+    /// The channels as an array.
+    #[inline]
+    #[must_use]
+    pub fn to_array(self) -> [T; 3] {
+        [self.r, self.g, self.b]
+    }
+    /// Converts to another precision.
+    #[inline]
+    #[must_use]
+    pub fn cast<U: Real>(self) -> Rgb<U> {
+        Rgb::new(
+            U::of(self.r.f64()),
+            U::of(self.g.f64()),
+            U::of(self.b.f64()),
+        )
+    }
+    /// Applies `f` to each channel.
+    #[inline]
+    #[must_use]
+    pub fn map(self, f: impl Fn(T) -> T) -> Self {
+        Self::new(f(self.r), f(self.g), f(self.b))
+    }
+    /// Combines two colours channel by channel.
+    #[inline]
+    #[must_use]
+    pub fn zip(self, o: Self, f: impl Fn(T, T) -> T) -> Self {
+        Self::new(f(self.r, o.r), f(self.g, o.g), f(self.b, o.b))
+    }
+    /// Largest channel.
+    #[inline]
+    #[must_use]
+    pub fn max_channel(self) -> T {
+        self.r.max(self.g).max(self.b)
+    }
+    /// Smallest channel.
+    #[inline]
+    #[must_use]
+    pub fn min_channel(self) -> T {
+        self.r.min(self.g).min(self.b)
+    }
+    /// Mean of the three channels.
+    #[inline]
+    #[must_use]
+    pub fn average(self) -> T {
+        (self.r + self.g + self.b) / T::of(3.0)
+    }
+    /// Rec.709 luminance.
+    #[inline]
+    #[must_use]
+    pub fn luminance(self) -> T {
+        T::of(0.2126) * self.r + T::of(0.7152) * self.g + T::of(0.0722) * self.b
+    }
+    /// True when all channels are exactly zero.
+    #[inline]
+    #[must_use]
+    pub fn is_black(self) -> bool {
+        self.r == T::zero() && self.g == T::zero() && self.b == T::zero()
+    }
+    /// True when all channels are finite.
+    #[inline]
+    #[must_use]
+    pub fn is_finite(self) -> bool {
+        self.r.is_finite() && self.g.is_finite() && self.b.is_finite()
+    }
+}
+
+impl<T: Real> Add for Rgb<T> {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        self.zip(o, |a, b| a + b)
+    }
+}
+impl<T: Real> AddAssign for Rgb<T> {
+    #[inline]
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+impl<T: Real> Sub for Rgb<T> {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        self.zip(o, |a, b| a - b)
+    }
+}
+impl<T: Real> Mul for Rgb<T> {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        self.zip(o, |a, b| a * b)
+    }
+}
+impl<T: Real> Mul<T> for Rgb<T> {
+    type Output = Self;
+    #[inline]
+    fn mul(self, s: T) -> Self {
+        self.map(|a| a * s)
+    }
+}
+impl<T: Real> MulAssign<T> for Rgb<T> {
+    #[inline]
+    fn mul_assign(&mut self, s: T) {
+        *self = *self * s;
+    }
+}
+impl<T: Real> Div<T> for Rgb<T> {
+    type Output = Self;
+    #[inline]
+    fn div(self, s: T) -> Self {
+        self.map(|a| a / s)
+    }
+}
+impl<T> Index<usize> for Rgb<T> {
+    type Output = T;
+    #[inline]
+    fn index(&self, i: usize) -> &T {
+        match i {
+            0 => &self.r,
+            1 => &self.g,
+            _ => &self.b,
+        }
+    }
+}

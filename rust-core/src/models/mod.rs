@@ -1,0 +1,92 @@
+//! The closed set of reflectance models, dispatched statically through [`Model`].
+//!
+//! Adding a model: write `models/<name>.rs` with a `pub static INFO: ModelInfo` and a type
+//! implementing [`Bxdf`], then add one line to the `models!` list below.
+
+use crate::bxdf::{BsdfSample, Bxdf, ModelInfo};
+use crate::frame::both_above;
+use crate::math::{Rgb, Vec3};
+use crate::real::Real;
+
+macro_rules! models {
+    ($($variant:ident($module:ident :: $ty:ident)),* $(,)?) => {
+        $(pub mod $module;)*
+
+        /// One reflectance model with its parameters; see [`all`] for the list.
+        #[derive(Clone, Debug)]
+        pub enum Model {
+            $(
+                #[doc = concat!("See [`", stringify!($module), "::", stringify!($ty), "`].")]
+                $variant($module::$ty),
+            )*
+        }
+
+        /// Every registered model, in the order `lacquer models` lists them.
+        #[must_use]
+        pub fn all() -> &'static [&'static ModelInfo] {
+            static ALL: &[&ModelInfo] = &[$(&$module::INFO),*];
+            ALL
+        }
+
+        impl Model {
+            #[inline]
+            fn eval_unchecked<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+                match self { $(Model::$variant(m) => m.eval(wi, wo),)* }
+            }
+            #[inline]
+            fn pdf_unchecked<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+                match self { $(Model::$variant(m) => m.pdf(wi, wo),)* }
+            }
+            #[inline]
+            fn sample_unchecked<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+                match self { $(Model::$variant(m) => m.sample(wo, u),)* }
+            }
+        }
+    };
+}
+
+models! {
+    Lambert(lambert::Lambert),
+}
+
+/// Looks a model up by its JSON name.
+#[must_use]
+pub fn find(name: &str) -> Option<&'static ModelInfo> {
+    all().iter().copied().find(|m| m.name == name)
+}
+
+impl Model {
+    /// `f_r(wi, wo)` (1/sr, no cosine) for unit directions; zero unless both are above the surface.
+    #[inline]
+    #[must_use]
+    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        if !both_above(wi, wo) {
+            return Rgb::zero();
+        }
+        self.eval_unchecked(wi, wo)
+    }
+
+    /// Density of `sample` choosing `wi` given `wo`; zero unless both are above the surface.
+    #[inline]
+    #[must_use]
+    pub fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        if !both_above(wi, wo) {
+            return T::zero();
+        }
+        self.pdf_unchecked(wi, wo)
+    }
+
+    /// Importance-samples `wi` for `wo`; `None` for a failed sample (below the surface, zero
+    /// density, or a non-finite weight).
+    #[inline]
+    #[must_use]
+    pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+        if !(wo.z > T::zero()) {
+            return None;
+        }
+        let s = self.sample_unchecked(wo, u)?;
+        let valid =
+            s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
+        (valid && (s.delta || s.wi.z > T::zero())).then_some(s)
+    }
+}
