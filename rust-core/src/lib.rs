@@ -23,6 +23,9 @@
 //! assert!((f.r - 0.8 / std::f64::consts::PI).abs() < 1e-15);
 //! ```
 
+// `!(x > 0.0)` is used on purpose throughout: it treats NaN as "not positive".
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod bxdf;
 pub mod check;
 pub mod error;

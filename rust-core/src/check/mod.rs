@@ -8,7 +8,7 @@
 //! hidden. Finiteness and non-negativity are required of every model.
 
 mod chi2;
-mod furnace;
+pub mod furnace;
 mod hard_cases;
 mod precision;
 mod reciprocity;

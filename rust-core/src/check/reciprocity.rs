@@ -36,7 +36,7 @@ pub fn reciprocity(m: &Material, cfg: &CheckConfig) -> ReciprocityReport {
     }
     // Adversarial pairs: mirror configurations, near-mirror, grazing, identical, normal.
     for &c in &[1.0, 0.9, 0.5, 0.1, 1e-2, 1e-4] {
-        for &phi in &[0.0, 0.4, 1.5707963267948966, 2.8] {
+        for &phi in &[0.0, 0.4, std::f64::consts::FRAC_PI_2, 2.8] {
             let w = direction(c, phi);
             pairs.push((w, w));
             pairs.push((w, mirror_z(w)));
