@@ -18,10 +18,8 @@ fn directions(n: usize) -> Vec<(Vec3<f64>, Vec3<f64>, [f64; 3])> {
 
 fn bench_models(c: &mut Criterion) {
     let dirs64 = directions(1024);
-    let dirs32: Vec<_> = dirs64
-        .iter()
-        .map(|(a, b, u)| (a.cast::<f32>(), b.cast::<f32>(), u.map(|x| x as f32)))
-        .collect();
+    let dirs32: Vec<_> =
+        dirs64.iter().map(|(a, b, u)| (a.cast::<f32>(), b.cast::<f32>(), u.map(|x| x as f32))).collect();
     for info in models::all() {
         let m = Material::default_of(info).expect("defaults build");
         let mut g = c.benchmark_group(info.name);

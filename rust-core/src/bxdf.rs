@@ -32,12 +32,7 @@ impl<T: Real> BsdfSample<T> {
         if !weight.is_finite() {
             return None;
         }
-        Some(Self {
-            wi,
-            weight,
-            pdf,
-            delta: false,
-        })
+        Some(Self { wi, weight, pdf, delta: false })
     }
 }
 
@@ -87,8 +82,6 @@ pub struct ModelInfo {
 
 impl std::fmt::Debug for ModelInfo {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ModelInfo")
-            .field("name", &self.name)
-            .finish_non_exhaustive()
+        f.debug_struct("ModelInfo").field("name", &self.name).finish_non_exhaustive()
     }
 }

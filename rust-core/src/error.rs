@@ -11,31 +11,15 @@ pub enum Error {
     /// The JSON is valid but not an object with a `"model"` (or `"preset"`) string.
     Shape(String),
     /// No model has this name.
-    UnknownModel {
-        name: String,
-        known: Vec<&'static str>,
-    },
+    UnknownModel { name: String, known: Vec<&'static str> },
     /// No preset has this name.
     UnknownPreset { name: String },
     /// A key the model does not have.
-    UnknownKey {
-        model: &'static str,
-        key: String,
-        known: Vec<&'static str>,
-    },
+    UnknownKey { model: &'static str, key: String, known: Vec<&'static str> },
     /// A value of the wrong JSON type.
-    WrongType {
-        param: String,
-        expected: &'static str,
-    },
+    WrongType { param: String, expected: &'static str },
     /// A number outside its documented range (or NaN/∞).
-    OutOfRange {
-        param: String,
-        value: f64,
-        min: f64,
-        max: f64,
-        unit: &'static str,
-    },
+    OutOfRange { param: String, value: f64, min: f64, max: f64, unit: &'static str },
     /// A combination of values the model cannot represent.
     Invalid { param: String, reason: String },
 }
@@ -46,42 +30,20 @@ impl fmt::Display for Error {
             Error::Json(m) => write!(f, "invalid JSON: {m}"),
             Error::Shape(m) => write!(f, "invalid material: {m}"),
             Error::UnknownModel { name, known } => {
-                write!(
-                    f,
-                    "unknown model \"{name}\"; known models: {}",
-                    known.join(", ")
-                )
+                write!(f, "unknown model \"{name}\"; known models: {}", known.join(", "))
             }
             Error::UnknownPreset { name } => {
-                write!(
-                    f,
-                    "unknown preset \"{name}\" (list them with `lacquer presets`)"
-                )
+                write!(f, "unknown preset \"{name}\" (list them with `lacquer presets`)")
             }
-            Error::UnknownKey { model, key, known } => write!(
-                f,
-                "model \"{model}\" has no parameter \"{key}\"; its parameters are: {}",
-                known.join(", ")
-            ),
+            Error::UnknownKey { model, key, known } => {
+                write!(f, "model \"{model}\" has no parameter \"{key}\"; its parameters are: {}", known.join(", "))
+            }
             Error::WrongType { param, expected } => {
                 write!(f, "parameter \"{param}\" must be {expected}")
             }
-            Error::OutOfRange {
-                param,
-                value,
-                min,
-                max,
-                unit,
-            } => {
-                let unit = if unit.is_empty() {
-                    String::new()
-                } else {
-                    format!(" {unit}")
-                };
-                write!(
-                    f,
-                    "parameter \"{param}\" = {value} is outside its range [{min}, {max}]{unit}"
-                )
+            Error::OutOfRange { param, value, min, max, unit } => {
+                let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+                write!(f, "parameter \"{param}\" = {value} is outside its range [{min}, {max}]{unit}")
             }
             Error::Invalid { param, reason } => write!(f, "parameter \"{param}\": {reason}"),
         }

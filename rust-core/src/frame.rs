@@ -112,11 +112,7 @@ pub fn spherical_direction<T: Real>(sin_theta: T, cos_theta: T, phi: T) -> Vec3<
 #[inline]
 #[must_use]
 pub fn basis_around<T: Real>(n: Vec3<T>) -> (Vec3<T>, Vec3<T>) {
-    let sign = if n.z >= T::zero() {
-        T::one()
-    } else {
-        -T::one()
-    };
+    let sign = if n.z >= T::zero() { T::one() } else { -T::one() };
     let a = -T::one() / (sign + n.z);
     let b = n.x * n.y * a;
     let s = Vec3::new(T::one() + sign * n.x * n.x * a, sign * b, -sign * n.x);

@@ -15,11 +15,7 @@ use crate::real::Real;
 #[inline]
 #[must_use]
 pub fn dielectric<T: Real>(cos_i: T, eta: T) -> T {
-    let (cos_i, eta) = if cos_i < T::zero() {
-        (-cos_i, T::one() / eta)
-    } else {
-        (cos_i, eta)
-    };
+    let (cos_i, eta) = if cos_i < T::zero() { (-cos_i, T::one() / eta) } else { (cos_i, eta) };
     let cos_i = cos_i.min(T::one());
     let sin2_t = (T::one() - cos_i * cos_i) / (eta * eta);
     if sin2_t >= T::one() {
@@ -85,17 +81,11 @@ impl<T: Real> Complex<T> {
         Self::new(self.re - o.re, self.im - o.im)
     }
     fn mul(self, o: Self) -> Self {
-        Self::new(
-            self.re * o.re - self.im * o.im,
-            self.re * o.im + self.im * o.re,
-        )
+        Self::new(self.re * o.re - self.im * o.im, self.re * o.im + self.im * o.re)
     }
     fn div(self, o: Self) -> Self {
         let d = o.re * o.re + o.im * o.im;
-        Self::new(
-            (self.re * o.re + self.im * o.im) / d,
-            (self.im * o.re - self.re * o.im) / d,
-        )
+        Self::new((self.re * o.re + self.im * o.im) / d, (self.im * o.re - self.re * o.im) / d)
     }
     fn norm2(self) -> T {
         self.re * self.re + self.im * self.im
@@ -138,11 +128,7 @@ pub fn conductor<T: Real>(cos_i: T, eta: T, k: T) -> T {
 #[inline]
 #[must_use]
 pub fn conductor_rgb<T: Real>(cos_i: T, eta: Rgb<T>, k: Rgb<T>) -> Rgb<T> {
-    Rgb::new(
-        conductor(cos_i, eta.r, k.r),
-        conductor(cos_i, eta.g, k.g),
-        conductor(cos_i, eta.b, k.b),
-    )
+    Rgb::new(conductor(cos_i, eta.r, k.r), conductor(cos_i, eta.g, k.g), conductor(cos_i, eta.b, k.b))
 }
 
 /// A measured metal: complex IOR per RGB channel, relative to air.
@@ -160,26 +146,10 @@ pub struct Metal {
 /// Mitsuba ship (Palik / Weaver data). Mitsuba's own RGB reduction differs slightly; the
 /// Mitsuba comparison tests pass n, k explicitly so both sides use the same numbers.
 pub const METALS: &[Metal] = &[
-    Metal {
-        name: "Au",
-        eta: [0.143119, 0.374957, 1.44248],
-        k: [3.98316, 2.38572, 1.60322],
-    },
-    Metal {
-        name: "Ag",
-        eta: [0.155265, 0.116723, 0.138342],
-        k: [4.82835, 3.12225, 2.14696],
-    },
-    Metal {
-        name: "Al",
-        eta: [1.65746, 0.880369, 0.521229],
-        k: [9.22387, 6.26952, 4.837],
-    },
-    Metal {
-        name: "Cu",
-        eta: [0.200438, 0.924033, 1.10221],
-        k: [3.91295, 2.45285, 2.14219],
-    },
+    Metal { name: "Au", eta: [0.143119, 0.374957, 1.44248], k: [3.98316, 2.38572, 1.60322] },
+    Metal { name: "Ag", eta: [0.155265, 0.116723, 0.138342], k: [4.82835, 3.12225, 2.14696] },
+    Metal { name: "Al", eta: [1.65746, 0.880369, 0.521229], k: [9.22387, 6.26952, 4.837] },
+    Metal { name: "Cu", eta: [0.200438, 0.924033, 1.10221], k: [3.91295, 2.45285, 2.14219] },
 ];
 
 /// Looks up a metal by name (case-sensitive chemical symbol).

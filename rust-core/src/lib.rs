@@ -35,12 +35,14 @@ pub mod material;
 pub mod math;
 pub mod microfacet;
 pub mod models;
+pub mod paint;
 pub mod params;
 pub mod presets;
 pub mod real;
 pub mod rng;
 pub mod sampling;
 pub mod special;
+pub mod table;
 
 pub use bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 pub use error::Error;

@@ -44,14 +44,9 @@ impl Material {
 
     /// Builds a material from parsed JSON.
     pub fn from_value(v: &Value) -> Result<Self, Error> {
-        let obj = v
-            .as_object()
-            .ok_or_else(|| Error::Shape("expected a JSON object".into()))?;
+        let obj = v.as_object().ok_or_else(|| Error::Shape("expected a JSON object".into()))?;
         if let Some(p) = obj.get("preset") {
-            let name = p.as_str().ok_or_else(|| Error::WrongType {
-                param: "preset".into(),
-                expected: "a string",
-            })?;
+            let name = p.as_str().ok_or_else(|| Error::WrongType { param: "preset".into(), expected: "a string" })?;
             if obj.len() > 1 {
                 return Err(Error::Shape("{\"preset\": ...} takes no other keys".into()));
             }
@@ -61,10 +56,7 @@ impl Material {
             .get("model")
             .ok_or_else(|| Error::Shape("missing \"model\" (or \"preset\") key".into()))?
             .as_str()
-            .ok_or_else(|| Error::WrongType {
-                param: "model".into(),
-                expected: "a string",
-            })?;
+            .ok_or_else(|| Error::WrongType { param: "model".into(), expected: "a string" })?;
         let info = models::find(name).ok_or_else(|| Error::UnknownModel {
             name: name.to_string(),
             known: models::all().iter().map(|m| m.name).collect(),
@@ -75,20 +67,14 @@ impl Material {
 
     /// Builds a named preset.
     pub fn preset(name: &str) -> Result<Self, Error> {
-        let p = presets::find(name).ok_or_else(|| Error::UnknownPreset {
-            name: name.to_string(),
-        })?;
+        let p = presets::find(name).ok_or_else(|| Error::UnknownPreset { name: name.to_string() })?;
         Self::from_json(p.json)
     }
 
     /// Builds a model from already validated parameters.
     pub fn from_params(info: &'static ModelInfo, params: Params) -> Result<Self, Error> {
         let model = (info.build)(&params)?;
-        Ok(Self {
-            model,
-            info,
-            params,
-        })
+        Ok(Self { model, info, params })
     }
 
     /// A model with all its defaults.

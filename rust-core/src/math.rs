@@ -38,11 +38,7 @@ impl<T: Real> Vec3<T> {
     #[inline]
     #[must_use]
     pub fn cast<U: Real>(self) -> Vec3<U> {
-        Vec3::new(
-            U::of(self.x.f64()),
-            U::of(self.y.f64()),
-            U::of(self.z.f64()),
-        )
+        Vec3::new(U::of(self.x.f64()), U::of(self.y.f64()), U::of(self.z.f64()))
     }
     /// Dot product.
     #[inline]
@@ -54,11 +50,7 @@ impl<T: Real> Vec3<T> {
     #[inline]
     #[must_use]
     pub fn cross(self, o: Self) -> Self {
-        Self::new(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
-        )
+        Self::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
     }
     /// Squared length.
     #[inline]
@@ -174,11 +166,7 @@ impl<T: Real> Rgb<T> {
     #[inline]
     #[must_use]
     pub fn cast<U: Real>(self) -> Rgb<U> {
-        Rgb::new(
-            U::of(self.r.f64()),
-            U::of(self.g.f64()),
-            U::of(self.b.f64()),
-        )
+        Rgb::new(U::of(self.r.f64()), U::of(self.g.f64()), U::of(self.b.f64()))
     }
     /// Applies `f` to each channel.
     #[inline]

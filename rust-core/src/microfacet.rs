@@ -51,11 +51,7 @@ impl<T: Real> Microfacet<T> {
     #[inline]
     #[must_use]
     pub fn new(kind: DistributionKind, alpha_x: T, alpha_y: T) -> Self {
-        Self {
-            kind,
-            alpha_x,
-            alpha_y,
-        }
+        Self { kind, alpha_x, alpha_y }
     }
 
     /// Normal distribution `D(m)` (1/sr, projected-area normalised: ∫ D(m) cos θm dm = 1).
@@ -129,9 +125,7 @@ impl<T: Real> Microfacet<T> {
         }
         match masking {
             MaskingKind::Separable => self.g1(wi, m) * self.g1(wo, m),
-            MaskingKind::HeightCorrelated => {
-                T::one() / (T::one() + self.lambda(wi) + self.lambda(wo))
-            }
+            MaskingKind::HeightCorrelated => T::one() / (T::one() + self.lambda(wi) + self.lambda(wo)),
         }
     }
 
@@ -187,9 +181,7 @@ impl<T: Real> Microfacet<T> {
         let inv_a2 = (cos_phi / ax).sqr() + (sin_phi / ay).sqr();
         let tan2 = match self.kind {
             DistributionKind::Ggx => u1 / ((T::one() - u1).max(T::epsilon()) * inv_a2),
-            DistributionKind::Beckmann => {
-                -(T::one() - u1).max(T::min_positive_value()).ln() / inv_a2
-            }
+            DistributionKind::Beckmann => -(T::one() - u1).max(T::min_positive_value()).ln() / inv_a2,
         };
         let cos_t = T::one() / (T::one() + tan2).sqrt();
         let sin_t = (T::one() - cos_t * cos_t).safe_sqrt();
@@ -216,18 +208,10 @@ impl<T: Real> Microfacet<T> {
         let (ax, ay) = (self.alpha_x.f64(), self.alpha_y.f64());
         let ws = Vec3::new(ax * w.x.f64(), ay * w.y.f64(), w.z.f64()).normalize();
         let sin_t = (ws.x * ws.x + ws.y * ws.y).sqrt();
-        let (cos_phi, sin_phi) = if sin_t > 1e-12 {
-            (ws.x / sin_t, ws.y / sin_t)
-        } else {
-            (1.0, 0.0)
-        };
+        let (cos_phi, sin_phi) = if sin_t > 1e-12 { (ws.x / sin_t, ws.y / sin_t) } else { (1.0, 0.0) };
         let u1 = u1.f64().clamp(1e-12, 1.0 - 1e-12);
         let u2 = u2.f64().clamp(1e-12, 1.0 - 1e-12);
-        let slope_x = if sin_t < 1e-9 {
-            erfinv(2.0 * u1 - 1.0)
-        } else {
-            beckmann_visible_slope(ws.z / sin_t, u1)
-        };
+        let slope_x = if sin_t < 1e-9 { erfinv(2.0 * u1 - 1.0) } else { beckmann_visible_slope(ws.z / sin_t, u1) };
         let slope_y = erfinv(2.0 * u2 - 1.0);
         // Rotate back to the azimuth of w, then unstretch the slopes.
         let sx = cos_phi * slope_x - sin_phi * slope_y;
@@ -256,11 +240,7 @@ fn beckmann_visible_slope(cot: f64, u: f64) -> f64 {
         }
         let deriv = (cot - x) * inv_sqrt_pi * (-x * x).exp();
         let newton = x - value / deriv;
-        x = if deriv > 0.0 && newton > lo && newton < hi {
-            newton
-        } else {
-            0.5 * (lo + hi)
-        };
+        x = if deriv > 0.0 && newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
         if hi - lo < 1e-15 {
             break;
         }
@@ -278,10 +258,7 @@ pub fn g_vgroove<T: Real>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
         return T::zero();
     }
     let two_nh = T::of(2.0) * h.z;
-    T::one()
-        .min(two_nh * wo.z / oh)
-        .min(two_nh * wi.z / oh)
-        .max(T::zero())
+    T::one().min(two_nh * wo.z / oh).min(two_nh * wi.z / oh).max(T::zero())
 }
 
 /// Jacobian of the reflection half-vector map: `dω_h/dω_i = 1/(4 |wo·h|)`.
@@ -326,11 +303,7 @@ mod tests {
                 for j in 0..np {
                     let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
                     let m = spherical_direction(theta.sin(), theta.cos(), phi);
-                    sum += mf.d(m)
-                        * m.z
-                        * theta.sin()
-                        * dtheta
-                        * (2.0 * std::f64::consts::PI / np as f64);
+                    sum += mf.d(m) * m.z * theta.sin() * dtheta * (2.0 * std::f64::consts::PI / np as f64);
                 }
             }
             assert!((sum - 1.0).abs() < 2e-3, "{mf:?}: {sum}");

@@ -71,44 +71,16 @@ impl ParamSpec {
         unit: &'static str,
         doc: &'static str,
     ) -> Self {
-        Self {
-            name,
-            kind: ParamKind::Scalar,
-            default: Default::Scalar(default),
-            min,
-            max,
-            unit,
-            doc,
-        }
+        Self { name, kind: ParamKind::Scalar, default: Default::Scalar(default), min, max, unit, doc }
     }
     /// A colour parameter (linear Rec.709 RGB).
     #[must_use]
-    pub const fn color(
-        name: &'static str,
-        default: [f64; 3],
-        min: f64,
-        max: f64,
-        doc: &'static str,
-    ) -> Self {
-        Self {
-            name,
-            kind: ParamKind::Color,
-            default: Default::Color(default),
-            min,
-            max,
-            unit: "",
-            doc,
-        }
+    pub const fn color(name: &'static str, default: [f64; 3], min: f64, max: f64, doc: &'static str) -> Self {
+        Self { name, kind: ParamKind::Color, default: Default::Color(default), min, max, unit: "", doc }
     }
     /// An integer parameter.
     #[must_use]
-    pub const fn integer(
-        name: &'static str,
-        default: i64,
-        min: i64,
-        max: i64,
-        doc: &'static str,
-    ) -> Self {
+    pub const fn integer(name: &'static str, default: i64, min: i64, max: i64, doc: &'static str) -> Self {
         Self {
             name,
             kind: ParamKind::Integer,
@@ -122,15 +94,7 @@ impl ParamSpec {
     /// A boolean parameter.
     #[must_use]
     pub const fn boolean(name: &'static str, default: bool, doc: &'static str) -> Self {
-        Self {
-            name,
-            kind: ParamKind::Bool,
-            default: Default::Bool(default),
-            min: 0.0,
-            max: 1.0,
-            unit: "",
-            doc,
-        }
+        Self { name, kind: ParamKind::Bool, default: Default::Bool(default), min: 0.0, max: 1.0, unit: "", doc }
     }
     /// A string choice.
     #[must_use]
@@ -153,15 +117,7 @@ impl ParamSpec {
     /// A structured JSON parameter, validated by the model.
     #[must_use]
     pub const fn json(name: &'static str, default: &'static str, doc: &'static str) -> Self {
-        Self {
-            name,
-            kind: ParamKind::Json,
-            default: Default::Json(default),
-            min: 0.0,
-            max: 0.0,
-            unit: "",
-            doc,
-        }
+        Self { name, kind: ParamKind::Json, default: Default::Json(default), min: 0.0, max: 0.0, unit: "", doc }
     }
 }
 
@@ -205,25 +161,15 @@ fn check_range(spec: &ParamSpec, param: &str, v: f64) -> Result<f64, Error> {
 
 fn parse_value(spec: &ParamSpec, v: &Value) -> Result<ParamValue, Error> {
     let name = spec.name;
-    let wrong = |expected| Error::WrongType {
-        param: name.to_string(),
-        expected,
-    };
+    let wrong = |expected| Error::WrongType { param: name.to_string(), expected };
     Ok(match spec.kind {
-        ParamKind::Scalar => ParamValue::Scalar(check_range(
-            spec,
-            name,
-            v.as_f64().ok_or_else(|| wrong("a number"))?,
-        )?),
+        ParamKind::Scalar => ParamValue::Scalar(check_range(spec, name, v.as_f64().ok_or_else(|| wrong("a number"))?)?),
         ParamKind::Color => {
             const EXPECTED: &str = "a number or an array of three numbers [r, g, b]";
             let c = if let Some(x) = v.as_f64() {
                 [x; 3]
             } else {
-                let a = v
-                    .as_array()
-                    .filter(|a| a.len() == 3)
-                    .ok_or_else(|| wrong(EXPECTED))?;
+                let a = v.as_array().filter(|a| a.len() == 3).ok_or_else(|| wrong(EXPECTED))?;
                 let mut c = [0.0; 3];
                 for (i, x) in a.iter().enumerate() {
                     c[i] = x.as_f64().ok_or_else(|| wrong(EXPECTED))?;
@@ -262,20 +208,14 @@ fn default_value(spec: &ParamSpec) -> ParamValue {
         Default::Integer(i) => ParamValue::Integer(i),
         Default::Bool(b) => ParamValue::Bool(b),
         Default::Choice(s) => ParamValue::Text(s.to_string()),
-        Default::Json(s) => {
-            ParamValue::Json(serde_json::from_str(s).expect("default JSON of a parameter is valid"))
-        }
+        Default::Json(s) => ParamValue::Json(serde_json::from_str(s).expect("default JSON of a parameter is valid")),
     }
 }
 
 impl Params {
     /// Validates `object` (without its `"model"` key) against `specs`: unknown keys, wrong
     /// types and out-of-range values are errors; absent keys take their defaults.
-    pub fn parse(
-        model: &'static str,
-        specs: &'static [ParamSpec],
-        object: &Map<String, Value>,
-    ) -> Result<Self, Error> {
+    pub fn parse(model: &'static str, specs: &'static [ParamSpec], object: &Map<String, Value>) -> Result<Self, Error> {
         for key in object.keys() {
             if key != "model" && !specs.iter().any(|s| s.name == key) {
                 return Err(Error::UnknownKey {
@@ -299,10 +239,7 @@ impl Params {
     /// All defaults of a model.
     #[must_use]
     pub fn defaults(model: &'static str, specs: &'static [ParamSpec]) -> Self {
-        Self {
-            model,
-            values: specs.iter().map(|s| (s.name, default_value(s))).collect(),
-        }
+        Self { model, values: specs.iter().map(|s| (s.name, default_value(s))).collect() }
     }
 
     /// The model these parameters belong to.
@@ -376,10 +313,7 @@ impl Params {
         let mut map = Map::new();
         map.insert("model".into(), Value::String(self.model.into()));
         for (name, v) in &self.values {
-            map.insert(
-                (*name).into(),
-                serde_json::to_value(v).expect("parameter values serialise"),
-            );
+            map.insert((*name).into(), serde_json::to_value(v).expect("parameter values serialise"));
         }
         Value::Object(map)
     }

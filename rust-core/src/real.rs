@@ -9,18 +9,7 @@ use std::ops::{AddAssign, DivAssign, MulAssign, SubAssign};
 
 /// A floating-point scalar (`f32` or `f64`) with the few conversions models need.
 pub trait Real:
-    Float
-    + FloatConst
-    + AddAssign
-    + SubAssign
-    + MulAssign
-    + DivAssign
-    + Debug
-    + Display
-    + Default
-    + Send
-    + Sync
-    + 'static
+    Float + FloatConst + AddAssign + SubAssign + MulAssign + DivAssign + Debug + Display + Default + Send + Sync + 'static
 {
     /// Converts an `f64` constant or parameter to this type (rounding for `f32`).
     fn of(x: f64) -> Self;

@@ -22,11 +22,8 @@ pub fn concentric_disk<T: Real>(u1: T, u2: T) -> (T, T) {
         return (T::zero(), T::zero());
     }
     let quarter_pi = T::FRAC_PI_4();
-    let (r, theta) = if ox.abs() > oy.abs() {
-        (ox, quarter_pi * (oy / ox))
-    } else {
-        (oy, T::FRAC_PI_2() - quarter_pi * (ox / oy))
-    };
+    let (r, theta) =
+        if ox.abs() > oy.abs() { (ox, quarter_pi * (oy / ox)) } else { (oy, T::FRAC_PI_2() - quarter_pi * (ox / oy)) };
     (r * theta.cos(), r * theta.sin())
 }
 
@@ -124,4 +121,29 @@ pub fn pick_lobe<T: Real>(weights: &[T], u: T) -> Option<(usize, T)> {
     // Rounding left `target` past the last positive weight.
     let last = weights.iter().rposition(|&w| w > T::zero())?;
     Some((last, one_minus_epsilon()))
+}
+
+/// Point `k` of an `n`-point 3-D Halton-Hammersley set: `[(k + ½)/n, Φ₂(k), Φ₃(k)]`. Used by
+/// precomputed tables and the furnace check: stratified in every dimension, so an integrand
+/// with a kink (e.g. a critical angle) is not aliased.
+#[inline]
+#[must_use]
+pub fn hammersley3(k: usize, n: usize) -> [f64; 3] {
+    let mut base3 = 0.0;
+    let mut inv = 1.0 / 3.0;
+    let mut i = k;
+    while i > 0 {
+        base3 += (i % 3) as f64 * inv;
+        i /= 3;
+        inv /= 3.0;
+    }
+    [(k as f64 + 0.5) / n as f64, radical_inverse(k as u32), base3]
+}
+
+/// Base-2 radical inverse (van der Corput) of `i`: a deterministic low-discrepancy jitter used
+/// by the material's precomputed tables.
+#[inline]
+#[must_use]
+pub fn radical_inverse(i: u32) -> f64 {
+    i.reverse_bits() as f64 * (1.0 / 4_294_967_296.0)
 }

@@ -92,11 +92,7 @@ mod tests {
         // Deep tail, where erf has no resolution left: the inverse must hit erfc instead.
         for y in [1.0 - 1e-15, 1.0 - 1e-12, -1.0 + 1e-13] {
             let x = erfinv(y);
-            let tail = if y > 0.0 {
-                libm::erfc(x) / (1.0 - y)
-            } else {
-                libm::erfc(-x) / (1.0 + y)
-            };
+            let tail = if y > 0.0 { libm::erfc(x) / (1.0 - y) } else { libm::erfc(-x) / (1.0 + y) };
             assert!((tail - 1.0).abs() < 1e-12, "y = {y}: x = {x}");
         }
     }

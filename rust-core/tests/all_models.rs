@@ -17,38 +17,16 @@ fn every_model_passes_its_claims() {
             let mut lines = vec![format!("{}:", r.model)];
             for m in &r.materials {
                 for v in m.verdicts.iter().filter(|v| !v.ok()) {
-                    lines.push(format!(
-                        "  {} = {:.3e} (limit {:.3e}) on {}",
-                        v.check, v.value, v.limit, m.material
-                    ));
+                    lines.push(format!("  {} = {:.3e} (limit {:.3e}) on {}", v.check, v.value, v.limit, m.material));
                 }
-                lines.extend(
-                    m.hard_cases
-                        .examples
-                        .iter()
-                        .map(|e| format!("  hard case {e}")),
-                );
+                lines.extend(m.hard_cases.examples.iter().map(|e| format!("  hard case {e}")));
             }
-            lines.extend(
-                r.parameter_extremes
-                    .examples
-                    .iter()
-                    .map(|e| format!("  extreme {e}")),
-            );
-            lines.extend(
-                r.parameter_extremes
-                    .build_errors
-                    .iter()
-                    .map(|e| format!("  build {e}")),
-            );
+            lines.extend(r.parameter_extremes.examples.iter().map(|e| format!("  extreme {e}")));
+            lines.extend(r.parameter_extremes.build_errors.iter().map(|e| format!("  build {e}")));
             failures.push(lines.join("\n"));
         }
     }
-    assert!(
-        failures.is_empty(),
-        "claims failed:\n{}",
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "claims failed:\n{}", failures.join("\n"));
 }
 
 /// Every model documents every parameter and builds from `{"model": name}` alone.
@@ -58,29 +36,12 @@ fn every_model_builds_from_its_name_alone() {
         let m = Material::from_json(&format!("{{\"model\": \"{}\"}}", info.name));
         assert!(m.is_ok(), "{}: {:?}", info.name, m.err());
         for p in info.params {
-            assert!(
-                !p.doc.is_empty(),
-                "{}.{} has no documentation",
-                info.name,
-                p.name
-            );
-            if matches!(
-                p.kind,
-                ParamKind::Scalar | ParamKind::Color | ParamKind::Integer
-            ) {
-                assert!(
-                    p.min <= p.max,
-                    "{}.{} has an empty range",
-                    info.name,
-                    p.name
-                );
+            assert!(!p.doc.is_empty(), "{}.{} has no documentation", info.name, p.name);
+            if matches!(p.kind, ParamKind::Scalar | ParamKind::Color | ParamKind::Integer) {
+                assert!(p.min <= p.max, "{}.{} has an empty range", info.name, p.name);
             }
         }
-        assert!(
-            !info.reference.is_empty() && !info.summary.is_empty(),
-            "{}",
-            info.name
-        );
+        assert!(!info.reference.is_empty() && !info.summary.is_empty(), "{}", info.name);
     }
 }
 
@@ -88,22 +49,15 @@ fn every_model_builds_from_its_name_alone() {
 #[test]
 fn bad_parameters_name_the_parameter() {
     for info in models::all() {
-        let e = Material::from_json(&format!(
-            "{{\"model\": \"{}\", \"no_such_key\": 1}}",
-            info.name
-        ))
-        .unwrap_err();
+        let e = Material::from_json(&format!("{{\"model\": \"{}\", \"no_such_key\": 1}}", info.name)).unwrap_err();
         assert!(e.to_string().contains("no_such_key"), "{e}");
         for p in info.params.iter().filter(|p| p.kind == ParamKind::Scalar) {
             for bad in [p.min - 1.0 - p.min.abs(), p.max + 1.0 + p.max.abs()] {
                 if !bad.is_finite() {
                     continue;
                 }
-                let e = Material::from_json(&format!(
-                    "{{\"model\": \"{}\", \"{}\": {bad}}}",
-                    info.name, p.name
-                ))
-                .unwrap_err();
+                let e = Material::from_json(&format!("{{\"model\": \"{}\", \"{}\": {bad}}}", info.name, p.name))
+                    .unwrap_err();
                 assert!(e.to_string().contains(p.name), "{}: {e}", info.name);
             }
         }
@@ -117,25 +71,17 @@ fn params_from_unit(info: &'static ModelInfo, u: &[f64]) -> Map<String, Value> {
         let t = u[i % u.len()];
         let lerp = |t: f64| {
             if spec.min > 0.0 && spec.max / spec.min > 100.0 {
-                (spec.min.ln() + t * (spec.max.ln() - spec.min.ln()))
-                    .exp()
-                    .clamp(spec.min, spec.max)
+                (spec.min.ln() + t * (spec.max.ln() - spec.min.ln())).exp().clamp(spec.min, spec.max)
             } else {
                 spec.min + t * (spec.max - spec.min)
             }
         };
         let v = match spec.kind {
             ParamKind::Scalar => Value::from(lerp(t)),
-            ParamKind::Color => Value::from(vec![
-                lerp(t),
-                lerp((t + 0.37) % 1.0),
-                lerp((t + 0.71) % 1.0),
-            ]),
+            ParamKind::Color => Value::from(vec![lerp(t), lerp((t + 0.37) % 1.0), lerp((t + 0.71) % 1.0)]),
             ParamKind::Integer => Value::from(lerp(t).round() as i64),
             ParamKind::Bool => Value::from(t < 0.5),
-            ParamKind::Choice(c) => {
-                Value::from(c[((t * c.len() as f64) as usize).min(c.len() - 1)])
-            }
+            ParamKind::Choice(c) => Value::from(c[((t * c.len() as f64) as usize).min(c.len() - 1)]),
             ParamKind::Json => continue,
         };
         obj.insert(spec.name.to_string(), v);

@@ -75,10 +75,7 @@ fn list_models(as_json: bool) -> ExitCode {
             .iter()
             .map(|m| json!({"name": m.name, "summary": m.summary, "reference": m.reference, "claims": m.claims, "params": m.params}))
             .collect();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&list).expect("serialisable")
-        );
+        println!("{}", serde_json::to_string_pretty(&list).expect("serialisable"));
         return ExitCode::SUCCESS;
     }
     for m in models::all() {
@@ -89,16 +86,9 @@ fn list_models(as_json: bool) -> ExitCode {
             "", c.reciprocal, c.energy_conserving, c.sampled, m.reference
         );
         for p in m.params {
-            let unit = if p.unit.is_empty() {
-                String::new()
-            } else {
-                format!(" {}", p.unit)
-            };
+            let unit = if p.unit.is_empty() { String::new() } else { format!(" {}", p.unit) };
             let default = serde_json::to_string(&p.default).expect("serialisable");
-            println!(
-                "{:<30}{:<22} default {default}, range [{}, {}]{unit}: {}",
-                "", p.name, p.min, p.max, p.doc
-            );
+            println!("{:<30}{:<22} default {default}, range [{}, {}]{unit}: {}", "", p.name, p.min, p.max, p.doc);
         }
     }
     ExitCode::SUCCESS
@@ -109,16 +99,11 @@ fn list_presets(as_json: bool) -> ExitCode {
         let list: Vec<Value> = presets::PRESETS
             .iter()
             .map(|p| {
-                let material = Material::from_json(p.json)
-                    .map(|m| m.to_json())
-                    .unwrap_or(Value::Null);
+                let material = Material::from_json(p.json).map(|m| m.to_json()).unwrap_or(Value::Null);
                 json!({"name": p.name, "description": p.description, "material": material})
             })
             .collect();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&list).expect("serialisable")
-        );
+        println!("{}", serde_json::to_string_pretty(&list).expect("serialisable"));
     } else {
         for p in presets::PRESETS {
             println!("{:<28} {}", p.name, p.description);
@@ -172,26 +157,16 @@ fn print_model_report(r: &ModelReport) {
     let reported: Vec<String> = r.materials[..1.min(r.materials.len())]
         .iter()
         .flat_map(|m| {
-            m.verdicts
-                .iter()
-                .filter(|v| v.status == "reported")
-                .map(|v| format!("{} {:.3e}", v.check, v.value))
+            m.verdicts.iter().filter(|v| v.status == "reported").map(|v| format!("{} {:.3e}", v.check, v.value))
         })
         .collect();
     if !reported.is_empty() {
-        println!(
-            "    not claimed, measured at defaults: {}",
-            reported.join(", ")
-        );
+        println!("    not claimed, measured at defaults: {}", reported.join(", "));
     }
 }
 
 fn run_check(args: CheckArgs) -> ExitCode {
-    let mut cfg = if args.quick {
-        CheckConfig::quick()
-    } else {
-        CheckConfig::standard()
-    };
+    let mut cfg = if args.quick { CheckConfig::quick() } else { CheckConfig::standard() };
     if let Some(seed) = args.seed {
         cfg.seed = seed;
     }
@@ -205,19 +180,17 @@ fn run_check(args: CheckArgs) -> ExitCode {
                 return ExitCode::from(2);
             }
         }
-    } else if let Some(spec) = args.material.as_deref().map(str::to_string).or(args
-        .preset
-        .as_ref()
-        .map(|p| format!("{{\"preset\": {}}}", Value::from(p.as_str()))))
+    } else if let Some(spec) = args
+        .material
+        .as_deref()
+        .map(str::to_string)
+        .or(args.preset.as_ref().map(|p| format!("{{\"preset\": {}}}", Value::from(p.as_str()))))
     {
         match load_material(&spec) {
             Ok(m) => {
                 let report = check::check_material(&m, &cfg, "material", true);
                 if args.json {
-                    println!(
-                        "{}",
-                        serde_json::to_string_pretty(&report).expect("serialisable")
-                    );
+                    println!("{}", serde_json::to_string_pretty(&report).expect("serialisable"));
                 } else {
                     println!("{}", m.to_json());
                     for v in &report.verdicts {
@@ -227,11 +200,7 @@ fn run_check(args: CheckArgs) -> ExitCode {
                         );
                     }
                 }
-                return if report.passed() {
-                    ExitCode::SUCCESS
-                } else {
-                    ExitCode::FAILURE
-                };
+                return if report.passed() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
             }
             Err(e) => {
                 eprintln!("error: {e}");
@@ -244,28 +213,17 @@ fn run_check(args: CheckArgs) -> ExitCode {
     };
     let passed = reports.iter().all(|r| r.passed);
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&reports).expect("serialisable")
-        );
+        println!("{}", serde_json::to_string_pretty(&reports).expect("serialisable"));
     } else {
         for r in &reports {
             print_model_report(r);
         }
-        let failed: Vec<_> = reports
-            .iter()
-            .filter(|r| !r.passed)
-            .map(|r| r.model)
-            .collect();
+        let failed: Vec<_> = reports.iter().filter(|r| !r.passed).map(|r| r.model).collect();
         println!(
             "{} models checked, {} failed{}",
             reports.len(),
             failed.len(),
-            if failed.is_empty() {
-                String::new()
-            } else {
-                format!(": {}", failed.join(", "))
-            }
+            if failed.is_empty() { String::new() } else { format!(": {}", failed.join(", ")) }
         );
     }
     if passed {

@@ -49,32 +49,15 @@ fn simpson(f: &impl Fn(f64, f64) -> f64, x0: f64, x1: f64, y0: f64, y1: f64) -> 
     s * (x1 - x0) * (y1 - y0) / 36.0
 }
 
-fn adaptive(
-    f: &impl Fn(f64, f64) -> f64,
-    x0: f64,
-    x1: f64,
-    y0: f64,
-    y1: f64,
-    whole: f64,
-    depth: u32,
-) -> f64 {
+fn adaptive(f: &impl Fn(f64, f64) -> f64, x0: f64, x1: f64, y0: f64, y1: f64, whole: f64, depth: u32) -> f64 {
     let (xm, ym) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-    let parts = [
-        (x0, xm, y0, ym),
-        (xm, x1, y0, ym),
-        (x0, xm, ym, y1),
-        (xm, x1, ym, y1),
-    ];
+    let parts = [(x0, xm, y0, ym), (xm, x1, y0, ym), (x0, xm, ym, y1), (xm, x1, ym, y1)];
     let vals = parts.map(|(a, b, c, d)| simpson(f, a, b, c, d));
     let sum: f64 = vals.iter().sum();
     if depth == 0 || (sum - whole).abs() <= 2e-4 * sum.abs() + 1e-12 {
         return sum + (sum - whole) / 15.0;
     }
-    parts
-        .iter()
-        .zip(vals)
-        .map(|(&(a, b, c, d), v)| adaptive(f, a, b, c, d, v, depth - 1))
-        .sum()
+    parts.iter().zip(vals).map(|(&(a, b, c, d), v)| adaptive(f, a, b, c, d, v, depth - 1)).sum()
 }
 
 /// Integral of `pdf(·, wo)` over the cell `[μ0, μ1] × [φ0, φ1]` (`dω = dμ dφ`).
@@ -129,10 +112,7 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
         for i in 0..nt {
             for j in 0..np {
                 let mu = (i as f64 / nt as f64, (i + 1) as f64 / nt as f64);
-                let ph = (
-                    2.0 * PI * j as f64 / np as f64,
-                    2.0 * PI * (j + 1) as f64 / np as f64,
-                );
+                let ph = (2.0 * PI * j as f64 / np as f64, 2.0 * PI * (j + 1) as f64 / np as f64);
                 expected[i * np + j] = n as f64 * cell_integral(m, wo, mu, ph);
             }
         }
@@ -140,20 +120,12 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
         let pdf_integral = total_expected / n as f64;
         let mut note = String::new();
         // Cells where the pdf integrates to zero but samples land: an outright failure.
-        let impossible = observed
-            .iter()
-            .zip(&expected)
-            .filter(|(o, e)| **o > 0.0 && **e == 0.0)
-            .count();
+        let impossible = observed.iter().zip(&expected).filter(|(o, e)| **o > 0.0 && **e == 0.0).count();
         if impossible > 0 {
             note = format!("{impossible} cells received samples where the pdf integrates to zero");
         }
-        let mut bins: Vec<(f64, f64)> = observed
-            .iter()
-            .copied()
-            .zip(expected.iter().copied())
-            .filter(|(_, e)| *e > 0.0)
-            .collect();
+        let mut bins: Vec<(f64, f64)> =
+            observed.iter().copied().zip(expected.iter().copied()).filter(|(_, e)| *e > 0.0).collect();
         bins.push((outside, (n as f64 - total_expected).max(0.0)));
         bins.sort_by(|a, b| a.1.total_cmp(&b.1));
         let (mut chi2, mut dof) = (0.0, 0usize);
@@ -180,11 +152,7 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
             note = format!("{pool_o} samples in cells with no expected mass");
         }
         let dof = dof.saturating_sub(1).max(1);
-        let p_value = if note.is_empty() {
-            super::stats::chi2_sf(chi2, dof as f64)
-        } else {
-            0.0
-        };
+        let p_value = if note.is_empty() { super::stats::chi2_sf(chi2, dof as f64) } else { 0.0 };
         cases.push(Chi2Case {
             cos_theta: cos_o,
             phi: phi_o,

@@ -80,13 +80,7 @@ impl HardCaseReport {
 fn grid_directions() -> Vec<Vec3<f64>> {
     let mut d = Vec::new();
     for &c in &[1.0, 0.5, 1e-2, 1e-4, 1e-7, 0.0, -1e-7, -0.5] {
-        for &phi in &[
-            0.0,
-            0.7,
-            std::f64::consts::FRAC_PI_2,
-            std::f64::consts::PI,
-            4.0,
-        ] {
+        for &phi in &[0.0, 0.7, std::f64::consts::FRAC_PI_2, std::f64::consts::PI, 4.0] {
             d.push(direction(c, phi));
         }
     }
@@ -148,10 +142,7 @@ fn run_precision<T: Real>(m: &Material, dirs: &[Vec3<f64>], r: &mut HardCaseRepo
 /// Runs the direction grid and bad inputs on one material, in f32 and f64.
 #[must_use]
 pub fn hard_cases(m: &Material) -> HardCaseReport {
-    let mut r = HardCaseReport {
-        materials: 1,
-        ..Default::default()
-    };
+    let mut r = HardCaseReport { materials: 1, ..Default::default() };
     let dirs = grid_directions();
     run_precision::<f64>(m, &dirs, &mut r, "f64");
     run_precision::<f32>(m, &dirs, &mut r, "f32");
@@ -180,8 +171,7 @@ pub fn hard_cases(m: &Material) -> HardCaseReport {
         if !zero {
             r.bad_input_not_zero += 1;
             if r.examples.len() < 8 {
-                r.examples
-                    .push(format!("invalid direction {b:?} gave a non-zero answer"));
+                r.examples.push(format!("invalid direction {b:?} gave a non-zero answer"));
             }
         }
     }
@@ -195,12 +185,7 @@ pub fn parameter_extremes(info: &'static ModelInfo) -> HardCaseReport {
     let numeric: Vec<_> = info
         .params
         .iter()
-        .filter(|s| {
-            matches!(
-                s.kind,
-                ParamKind::Scalar | ParamKind::Integer | ParamKind::Color
-            )
-        })
+        .filter(|s| matches!(s.kind, ParamKind::Scalar | ParamKind::Integer | ParamKind::Color))
         .collect();
     let value = |s: &crate::params::ParamSpec, hi: bool| {
         let v = if hi { s.max } else { s.min };
@@ -229,7 +214,12 @@ pub fn parameter_extremes(info: &'static ModelInfo) -> HardCaseReport {
     let mut total = HardCaseReport::default();
     for obj in sets {
         match super::build(info, &obj) {
-            Ok(m) => total.merge(hard_cases(&m)),
+            Ok(m) => {
+                let mut r = hard_cases(&m);
+                let params = Value::Object(obj.clone());
+                r.examples = r.examples.into_iter().map(|e| format!("{params}: {e}")).collect();
+                total.merge(r);
+            }
             Err(e) => total.rejected.push(format!("{}: {e}", Value::Object(obj))),
         }
     }

@@ -118,26 +118,13 @@ pub struct Verdict {
 }
 
 impl Verdict {
-    fn new(
-        check: &'static str,
-        claimed: bool,
-        ok: bool,
-        value: f64,
-        limit: f64,
-        note: impl Into<String>,
-    ) -> Self {
+    fn new(check: &'static str, claimed: bool, ok: bool, value: f64, limit: f64, note: impl Into<String>) -> Self {
         let status = match (claimed, ok) {
             (true, true) => "pass",
             (true, false) => "fail",
             (false, _) => "reported",
         };
-        Self {
-            check,
-            status,
-            value,
-            limit,
-            note: note.into(),
-        }
+        Self { check, status, value, limit, note: note.into() }
     }
     /// True unless this is a failed claim.
     #[must_use]
@@ -224,20 +211,11 @@ pub(crate) fn direction(cos_theta: f64, phi: f64) -> Vec3<f64> {
 
 /// Runs every check on one material and judges it against `claims`.
 #[must_use]
-pub fn check_material(
-    m: &Material,
-    cfg: &CheckConfig,
-    origin: &'static str,
-    run_chi2: bool,
-) -> MaterialReport {
+pub fn check_material(m: &Material, cfg: &CheckConfig, origin: &'static str, run_chi2: bool) -> MaterialReport {
     let claims = m.info().claims;
     let reciprocity = reciprocity(m, cfg);
     let furnace = furnace(m, cfg);
-    let chi2 = if run_chi2 && claims.sampled {
-        chi2_test(m, cfg)
-    } else {
-        Vec::new()
-    };
+    let chi2 = if run_chi2 && claims.sampled { chi2_test(m, cfg) } else { Vec::new() };
     let hard_cases = hard_cases(m);
     let precision = precision(m, cfg);
 
@@ -295,10 +273,7 @@ pub fn check_material(
             1.0 + 1e-3,
             "∫ pdf dωi over the hemisphere",
         ));
-        let max_cons = chi2
-            .iter()
-            .map(|c| c.sample_consistency)
-            .fold(0.0, f64::max);
+        let max_cons = chi2.iter().map(|c| c.sample_consistency).fold(0.0, f64::max);
         verdicts.push(Verdict::new(
             "sample_consistency",
             true,
@@ -308,16 +283,7 @@ pub fn check_material(
             "max relative gap between sample()'s pdf/weight and pdf()/eval()",
         ));
     }
-    MaterialReport {
-        material: m.to_json(),
-        origin,
-        reciprocity,
-        furnace,
-        chi2,
-        hard_cases,
-        precision,
-        verdicts,
-    }
+    MaterialReport { material: m.to_json(), origin, reciprocity, furnace, chi2, hard_cases, precision, verdicts }
 }
 
 /// Draws a random valid parameter set (log-uniform for ranges spanning over two decades).
@@ -326,9 +292,7 @@ fn random_params(info: &'static ModelInfo, rng: &mut Pcg32) -> Map<String, Value
     for spec in info.params {
         let draw = |rng: &mut Pcg32| -> f64 {
             if spec.min > 0.0 && spec.max / spec.min > 100.0 {
-                (spec.min.ln() + rng.uniform() * (spec.max.ln() - spec.min.ln()))
-                    .exp()
-                    .clamp(spec.min, spec.max)
+                (spec.min.ln() + rng.uniform() * (spec.max.ln() - spec.min.ln())).exp().clamp(spec.min, spec.max)
             } else {
                 rng.range(spec.min, spec.max)
             }
@@ -338,9 +302,7 @@ fn random_params(info: &'static ModelInfo, rng: &mut Pcg32) -> Map<String, Value
             ParamKind::Color => Value::from(vec![draw(rng), draw(rng), draw(rng)]),
             ParamKind::Integer => Value::from(draw(rng).round() as i64),
             ParamKind::Bool => Value::from(rng.uniform() < 0.5),
-            ParamKind::Choice(c) => {
-                Value::from(c[(rng.uniform() * c.len() as f64) as usize % c.len()])
-            }
+            ParamKind::Choice(c) => Value::from(c[(rng.uniform() * c.len() as f64) as usize % c.len()]),
             ParamKind::Json => match spec.default {
                 Default::Json(s) => serde_json::from_str(s).expect("valid default JSON"),
                 _ => continue,
@@ -367,8 +329,7 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
         Err(e) => build_errors.push(format!("defaults: {e}")),
     }
     for text in info.check_params {
-        let obj: Map<String, Value> =
-            serde_json::from_str(text).expect("check_params are JSON objects");
+        let obj: Map<String, Value> = serde_json::from_str(text).expect("check_params are JSON objects");
         match build(info, &obj) {
             Ok(m) => materials.push(check_material(&m, cfg, "check set", true)),
             Err(e) => build_errors.push(format!("{text}: {e}")),
@@ -389,15 +350,9 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
     let mut extremes = parameter_extremes(info);
     extremes.build_errors.extend(build_errors.iter().cloned());
 
-    let mut summary = Summary {
-        furnace_min: f64::INFINITY,
-        chi2_min_p: 1.0,
-        ..Summary::default()
-    };
+    let mut summary = Summary { furnace_min: f64::INFINITY, chi2_min_p: 1.0, ..Summary::default() };
     for r in &materials {
-        summary.worst_reciprocity = summary
-            .worst_reciprocity
-            .max(r.reciprocity.max_relative_error);
+        summary.worst_reciprocity = summary.worst_reciprocity.max(r.reciprocity.max_relative_error);
         summary.furnace_max = summary.furnace_max.max(r.furnace.max_albedo);
         summary.furnace_min = summary.furnace_min.min(r.furnace.min_albedo);
         for c in &r.chi2 {
@@ -412,24 +367,14 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
         && !materials.is_empty()
         && extremes.failures() == 0
         && materials.iter().all(MaterialReport::passed);
-    ModelReport {
-        model: info.name,
-        claims: info.claims,
-        materials,
-        parameter_extremes: extremes,
-        summary,
-        passed,
-    }
+    ModelReport { model: info.name, claims: info.claims, materials, parameter_extremes: extremes, summary, passed }
 }
 
 /// Checks every registered model, spreading models over the available cores.
 #[must_use]
 pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
     let infos = crate::models::all();
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(infos.len())
-        .max(1);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(infos.len()).max(1);
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut results: Vec<Option<ModelReport>> = vec![None; infos.len()];
     let slots = std::sync::Mutex::new(&mut results);
@@ -445,8 +390,5 @@ pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
             });
         }
     });
-    results
-        .into_iter()
-        .map(|r| r.expect("every model checked"))
-        .collect()
+    results.into_iter().map(|r| r.expect("every model checked")).collect()
 }

@@ -48,13 +48,7 @@ pub fn precision(m: &Material, cfg: &CheckConfig) -> PrecisionReport {
         }
         sum_err += e;
         let ep = (pa - pb).abs() / pa.abs().max(floor_pdf);
-        max_err = max_err
-            .max(e)
-            .max(if ep.is_nan() { f64::INFINITY } else { ep });
+        max_err = max_err.max(e).max(if ep.is_nan() { f64::INFINITY } else { ep });
     }
-    PrecisionReport {
-        pairs: n,
-        max_relative_error: max_err,
-        mean_relative_error: sum_err / n as f64,
-    }
+    PrecisionReport { pairs: n, max_relative_error: max_err, mean_relative_error: sum_err / n as f64 }
 }

@@ -58,9 +58,5 @@ pub fn reciprocity(m: &Material, cfg: &CheckConfig) -> ReciprocityReport {
             }
         }
     }
-    ReciprocityReport {
-        pairs: pairs.len(),
-        max_relative_error: worst,
-        worst_pair,
-    }
+    ReciprocityReport { pairs: pairs.len(), max_relative_error: worst, worst_pair }
 }

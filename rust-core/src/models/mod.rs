@@ -46,6 +46,7 @@ macro_rules! models {
 }
 
 models! {
+    CoatedPaint(coated_paint::CoatedPaint),
     Lambert(lambert::Lambert),
 }
 
@@ -85,8 +86,7 @@ impl Model {
             return None;
         }
         let s = self.sample_unchecked(wo, u)?;
-        let valid =
-            s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
+        let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
         (valid && (s.delta || s.wi.z > T::zero())).then_some(s)
     }
 }

@@ -1,0 +1,180 @@
+//! The basecoat as seen from inside the clearcoat: diffuse pigment, an optional rough metallic
+//! base, and the flake layer. Directions are in the binder (refracted into the coat), z up.
+//!
+//! `f_b = ρ/π · (1 − c + c_p T_p(μi) T_p(μo)) + (1 − c)·m·f_metal + f_flakes`, where `c` is the
+//! total flake coverage, `c_p` the pearlescent part, `T_p = 1 − R_film` the light a pearl flake
+//! lets through to the pigment, and `m` the metallic weight of the base. Every term is
+//! symmetric in (wi, wo), and the weights sum to at most one, so `f_b` is reciprocal and
+//! energy-conserving when each lobe is.
+
+use super::flakes::FlakeLayer;
+use crate::bxdf::BsdfSample;
+use crate::fresnel;
+use crate::math::{Rgb, Vec3};
+use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::real::Real;
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, pick_lobe};
+use crate::table::MuTable;
+
+/// A GGX metallic base with Schlick Fresnel.
+#[derive(Clone, Debug)]
+pub struct MetalBase {
+    /// GGX α.
+    pub alpha: f64,
+    /// Normal-incidence reflectance per channel.
+    pub f0: [f64; 3],
+    /// Weight `(1 − c)·m`.
+    pub weight: f64,
+}
+
+impl MetalBase {
+    fn microfacet<T: Real>(&self) -> Microfacet<T> {
+        let a = T::of(self.alpha);
+        Microfacet::new(DistributionKind::Ggx, a, a)
+    }
+
+    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let Some(h) = crate::frame::half_vector(wi, wo) else { return Rgb::zero() };
+        let mf = self.microfacet::<T>();
+        let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
+        if g == T::zero() {
+            return Rgb::zero();
+        }
+        fresnel::schlick_rgb(wi.dot(h), Rgb::from_array(self.f0))
+            * (T::of(self.weight) * mf.d(h) * g / (T::of(4.0) * wi.z * wo.z))
+    }
+
+    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
+        self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h)
+    }
+
+    fn sample_direction<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+        crate::frame::reflect(wo, self.microfacet::<T>().sample_m(wo, u1, u2, true))
+    }
+}
+
+/// The basecoat.
+#[derive(Clone, Debug)]
+pub struct Basecoat {
+    /// Pigment albedo ρ.
+    pub pigment: [f64; 3],
+    /// Area not covered by flakes times the non-metallic weight: `(1 − c)(1 − m)`.
+    pub pigment_weight: f64,
+    /// Pearl coverage `c_p` (pigment seen through pearl flakes).
+    pub pearl_coverage: f64,
+    /// `T_p(μ) = 1 − R_film(μ)` of pearl flakes (None without pearl flakes).
+    pub pearl_transmission: Option<MuTable>,
+    /// Optional metallic base.
+    pub metal: Option<MetalBase>,
+    /// Optional flakes.
+    pub flakes: Option<FlakeLayer>,
+    /// Lobe-selection weights: pigment, metal, flakes.
+    selection: [f64; 3],
+}
+
+impl Basecoat {
+    /// Assembles a basecoat and its lobe-selection weights (estimated lobe albedos).
+    #[must_use]
+    pub fn new(
+        pigment: [f64; 3],
+        pigment_weight: f64,
+        pearl_coverage: f64,
+        pearl_transmission: Option<MuTable>,
+        metal: Option<MetalBase>,
+        flakes: Option<FlakeLayer>,
+    ) -> Self {
+        let mean = |c: [f64; 3]| (c[0] + c[1] + c[2]) / 3.0;
+        let t_p = pearl_transmission.as_ref().map_or(0.0, |t| mean(t.eval::<f64>(1.0)).powi(2));
+        let w_pigment = mean(pigment) * (pigment_weight + pearl_coverage * t_p);
+        let w_metal = metal.as_ref().map_or(0.0, |m| m.weight * mean(m.f0).max(0.04));
+        let w_flakes = flakes.as_ref().map_or(0.0, |f| f.normal_reflectance());
+        // Never let a present lobe go unsampled: floor each at 2 % of the total.
+        let total = (w_pigment + w_metal + w_flakes).max(1e-12);
+        let floor = |w: f64, present: bool| if present { w.max(0.02 * total) } else { 0.0 };
+        let selection = [
+            floor(w_pigment, pigment_weight > 0.0 || pearl_coverage > 0.0),
+            floor(w_metal, metal.is_some()),
+            floor(w_flakes, flakes.is_some()),
+        ];
+        Self { pigment, pigment_weight, pearl_coverage, pearl_transmission, metal, flakes, selection }
+    }
+
+    /// Diffuse pigment term `ρ/π (w + c_p T_p(μi) T_p(μo))`.
+    #[inline]
+    fn pigment_eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let rho = Rgb::from_array(self.pigment) * T::inv_pi();
+        match &self.pearl_transmission {
+            None => rho * T::of(self.pigment_weight),
+            Some(t) => {
+                let (a, b) = (t.eval(wi.z), t.eval(wo.z));
+                let cp = T::of(self.pearl_coverage);
+                let w = T::of(self.pigment_weight);
+                Rgb::new(rho.r * (w + cp * a[0] * b[0]), rho.g * (w + cp * a[1] * b[1]), rho.b * (w + cp * a[2] * b[2]))
+            }
+        }
+    }
+
+    /// `f_b(wi, wo)` with flake multipliers (1, 1 for the mean lobe).
+    #[inline]
+    #[must_use]
+    pub fn eval_scaled<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+        let mut f = self.pigment_eval(wi, wo);
+        if let Some(m) = &self.metal {
+            f += m.eval(wi, wo);
+        }
+        if let Some(fl) = &self.flakes {
+            f += fl.eval_scaled(wi, wo, metal_scale, pearl_scale);
+        }
+        f
+    }
+
+    /// `f_b(wi, wo)`, the mean basecoat BRDF.
+    #[inline]
+    #[must_use]
+    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_scaled(wi, wo, T::one(), T::one())
+    }
+
+    /// Mixture density of [`Basecoat::sample_direction`].
+    #[inline]
+    #[must_use]
+    pub fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        let [a, b, c] = self.selection.map(T::of);
+        let total = a + b + c;
+        if total <= T::zero() {
+            return T::zero();
+        }
+        let mut p = a * cosine_hemisphere_pdf(wi.z);
+        if let Some(m) = &self.metal {
+            p += b * m.pdf(wi, wo);
+        }
+        if let Some(f) = &self.flakes {
+            p += c * f.pdf(wi, wo);
+        }
+        p / total
+    }
+
+    /// Picks a lobe with `u0` and samples a direction from it (may be below the surface).
+    #[inline]
+    #[must_use]
+    pub fn sample_direction<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<Vec3<T>> {
+        let weights = self.selection.map(T::of);
+        let (lobe, _) = pick_lobe(&weights, u[0])?;
+        Some(match lobe {
+            0 => cosine_hemisphere(u[1], u[2]),
+            1 => self.metal.as_ref()?.sample_direction(wo, u[1], u[2]),
+            _ => self.flakes.as_ref()?.sample_direction(wo, u[1], u[2]),
+        })
+    }
+
+    /// A full sample of the basecoat alone (weight `f_b cos/pdf` with the mixture pdf).
+    #[must_use]
+    pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+        let wi = self.sample_direction(wo, u)?;
+        if wi.z <= T::zero() {
+            return None;
+        }
+        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+    }
+}

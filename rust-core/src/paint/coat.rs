@@ -1,0 +1,185 @@
+//! The clearcoat: a dielectric interface of index `η` over the basecoat, smooth (a mirror
+//! delta lobe) or GGX-rough, with Beer-Lambert absorption across its thickness.
+//!
+//! Light crossing the coat refracts at the macro normal (Snell); the rough coat's transmission
+//! is approximated by that refraction with the energy `1 − E_top(μ)` its reflection leaves
+//! (Weidlich & Wilkie 2007), so that top reflection and transmission together conserve energy.
+
+use crate::fresnel;
+use crate::math::Vec3;
+use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::real::Real;
+use crate::table::MuTable;
+
+/// Number of `μ` nodes of the coat's albedo table.
+const ALBEDO_NODES: usize = 64;
+/// Low-discrepancy samples per node of the albedo table.
+const ALBEDO_SAMPLES: usize = 1024;
+
+/// A dielectric coat.
+#[derive(Clone, Debug)]
+pub struct Coat {
+    /// Relative index of refraction coat/air (1 means no interface).
+    pub ior: f64,
+    /// GGX roughness α of the top surface (0 = smooth).
+    pub roughness: f64,
+    /// Absorption coefficient per channel, 1/mm.
+    pub absorption_per_mm: [f64; 3],
+    /// Thickness in mm.
+    pub thickness_mm: f64,
+    /// `E_top(μ)`: directional albedo of the top reflection (rough coats only).
+    albedo: Option<MuTable>,
+}
+
+impl Coat {
+    /// Builds a coat; rough coats tabulate their reflection albedo.
+    #[must_use]
+    pub fn new(ior: f64, roughness: f64, thickness_um: f64, absorption_per_mm: [f64; 3]) -> Self {
+        let mut coat = Self { ior, roughness, absorption_per_mm, thickness_mm: thickness_um * 1e-3, albedo: None };
+        if !coat.is_smooth() {
+            coat.albedo = Some(coat.tabulate_albedo());
+        }
+        coat
+    }
+
+    /// True for a mirror-smooth top surface.
+    #[inline]
+    #[must_use]
+    pub fn is_smooth(&self) -> bool {
+        self.roughness == 0.0
+    }
+
+    /// True when the coat absorbs.
+    #[inline]
+    #[must_use]
+    pub fn absorbs(&self) -> bool {
+        self.thickness_mm > 0.0 && self.absorption_per_mm.iter().any(|&a| a > 0.0)
+    }
+
+    fn microfacet<T: Real>(&self) -> Microfacet<T> {
+        let a = T::of(self.roughness);
+        Microfacet::new(DistributionKind::Ggx, a, a)
+    }
+
+    /// Energy the top surface reflects for incidence `μ`: `F(μ)` (smooth) or `E_top(μ)`.
+    #[inline]
+    #[must_use]
+    pub fn reflectance<T: Real>(&self, mu: T) -> T {
+        match &self.albedo {
+            None => fresnel::dielectric(mu, T::of(self.ior)),
+            Some(t) => t.eval(mu)[0],
+        }
+    }
+
+    /// Energy that enters the coat from direction `μ`: `1 − reflectance`.
+    #[inline]
+    #[must_use]
+    pub fn transmittance<T: Real>(&self, mu: T) -> T {
+        (T::one() - self.reflectance(mu)).max(T::zero())
+    }
+
+    /// The rough top reflection `F(wo·h) D(h) G(wi, wo) / (4 cos θi cos θo)` (0 when smooth).
+    #[inline]
+    #[must_use]
+    pub fn reflection_eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        if self.is_smooth() {
+            return T::zero();
+        }
+        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
+        let mf = self.microfacet::<T>();
+        let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
+        if g == T::zero() {
+            return T::zero();
+        }
+        fresnel::dielectric(wo.dot(h), T::of(self.ior)) * mf.d(h) * g / (T::of(4.0) * wi.z * wo.z)
+    }
+
+    /// Density of [`Coat::reflection_sample`] (visible-normal sampling).
+    #[inline]
+    #[must_use]
+    pub fn reflection_pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        if self.is_smooth() {
+            return T::zero();
+        }
+        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
+        self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h)
+    }
+
+    /// Samples the top reflection: the mirror direction when smooth, else a GGX visible normal.
+    #[inline]
+    #[must_use]
+    pub fn reflection_sample<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+        if self.is_smooth() {
+            return crate::frame::mirror_z(wo);
+        }
+        let h = self.microfacet::<T>().sample_m(wo, u1, u2, true);
+        crate::frame::reflect(wo, h)
+    }
+
+    /// Direction inside the coat (pointing up, away from the base) of light that crossed the
+    /// top surface along outside direction `w`.
+    #[inline]
+    #[must_use]
+    pub fn refract_in<T: Real>(&self, w: Vec3<T>) -> Vec3<T> {
+        let eta = T::of(self.ior);
+        // cos²θ' = (η² − 1 + cos²θ)/η², written from z so it stays exact at η = 1 and grazing.
+        let z = ((eta * eta - T::one() + w.z * w.z).safe_sqrt() / eta).max(T::min_positive_value());
+        Vec3::new(w.x / eta, w.y / eta, z)
+    }
+
+    /// Outside direction of light leaving the coat along inside direction `w`, or `None` under
+    /// total internal reflection.
+    #[inline]
+    #[must_use]
+    pub fn refract_out<T: Real>(&self, w: Vec3<T>) -> Option<Vec3<T>> {
+        let eta = T::of(self.ior);
+        // cos²θ = 1 − η²(1 − cos²θ') = 1 − η² sin²θ'.
+        let c2 = T::one() - eta * eta * (T::one() - w.z * w.z);
+        (c2 > T::zero()).then(|| Vec3::new(w.x * eta, w.y * eta, c2.sqrt()))
+    }
+
+    /// `dω_inside / dω_outside = cos θ / (η² cos θ')` for an outside direction with cosine
+    /// `mu_out` and its refracted inside cosine `mu_in`.
+    #[inline]
+    #[must_use]
+    pub fn solid_angle_ratio<T: Real>(&self, mu_out: T, mu_in: T) -> T {
+        mu_out / (T::of(self.ior * self.ior) * mu_in)
+    }
+
+    /// Beer-Lambert transmittance of one crossing along an inside direction with cosine `mu_in`.
+    #[inline]
+    #[must_use]
+    pub fn attenuation<T: Real>(&self, mu_in: T) -> [T; 3] {
+        if !self.absorbs() {
+            return [T::one(); 3];
+        }
+        let path = T::of(self.thickness_mm) / mu_in.max(T::of(1e-6));
+        self.absorption_per_mm.map(|a| (-(T::of(a) * path)).exp())
+    }
+
+    /// Tabulates `E_top(μ) = ∫ F D G / (4 cos θo) dωi` with stratified visible-normal samples
+    /// (the estimator `F(wo·h) G2/G1(wo)` has low variance and no bias).
+    fn tabulate_albedo(&self) -> MuTable {
+        let mf = self.microfacet::<f64>();
+        let eta = self.ior;
+        MuTable::build(ALBEDO_NODES, |mu| {
+            let mu = mu.max(1e-4);
+            let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+            let n = ALBEDO_SAMPLES;
+            let mut sum = 0.0;
+            for k in 0..n {
+                let [_, u1, u2] = crate::paint::hammersley3(k, n);
+                let h = mf.sample_m(wo, u1, u2, true);
+                let wi = crate::frame::reflect(wo, h);
+                if wi.z <= 0.0 {
+                    continue;
+                }
+                let g1 = mf.g1(wo, h);
+                if g1 > 0.0 {
+                    sum += fresnel::dielectric(wo.dot(h), eta) * mf.g(wi, wo, h, MaskingKind::HeightCorrelated) / g1;
+                }
+            }
+            [sum / n as f64; 3]
+        })
+    }
+}

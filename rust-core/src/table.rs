@@ -1,0 +1,78 @@
+//! Small tables of precomputed functions of `cos θ`, linearly interpolated.
+
+use crate::real::Real;
+
+/// An RGB function of `μ = cos θ ∈ [0, 1]` sampled at evenly spaced nodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MuTable {
+    values: Vec<[f64; 3]>,
+}
+
+impl MuTable {
+    /// Tabulates `f(μ)` at `n ≥ 2` nodes `μ_k = k/(n−1)`.
+    #[must_use]
+    pub fn build(n: usize, mut f: impl FnMut(f64) -> [f64; 3]) -> Self {
+        let n = n.max(2);
+        Self { values: (0..n).map(|k| f(k as f64 / (n - 1) as f64)).collect() }
+    }
+
+    /// A table from node values at `μ_k = k/(n−1)` (`n ≥ 2`).
+    #[must_use]
+    pub fn from_values(values: Vec<[f64; 3]>) -> Self {
+        assert!(values.len() >= 2, "a table needs at least two nodes");
+        Self { values }
+    }
+
+    /// Node values.
+    #[must_use]
+    pub fn values(&self) -> &[[f64; 3]] {
+        &self.values
+    }
+
+    /// Linear interpolation at `μ` (clamped to `[0, 1]`).
+    #[inline]
+    #[must_use]
+    pub fn eval<T: Real>(&self, mu: T) -> [T; 3] {
+        let last = self.values.len() - 1;
+        let x = mu.f64().clamp(0.0, 1.0) * last as f64;
+        let i = (x as usize).min(last - 1);
+        let t = x - i as f64;
+        let (a, b) = (self.values[i], self.values[i + 1]);
+        [0, 1, 2].map(|c| T::of(a[c] + (b[c] - a[c]) * t))
+    }
+
+    /// `2 ∫₀¹ f(μ) μ dμ` per channel (the cosine-weighted hemispherical average), by the
+    /// trapezoid rule on the nodes (exact for the piecewise-linear interpolant times μ up to
+    /// O(h²)).
+    #[must_use]
+    pub fn cosine_average(&self) -> [f64; 3] {
+        let n = self.values.len();
+        let h = 1.0 / (n - 1) as f64;
+        let mut s = [0.0; 3];
+        for k in 0..n - 1 {
+            let (m0, m1) = (k as f64 * h, (k + 1) as f64 * h);
+            for (c, acc) in s.iter_mut().enumerate() {
+                let (a, b) = (self.values[k][c], self.values[k + 1][c]);
+                // ∫ (a + (b−a)(μ−m0)/h) μ dμ over [m0, m1], exactly.
+                *acc += h * (a * (2.0 * m0 + m1) + b * (m0 + 2.0 * m1)) / 6.0;
+            }
+        }
+        s.map(|v| 2.0 * v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cosine_average_of_constant_and_linear() {
+        let t = MuTable::build(17, |_| [1.0, 0.5, 0.0]);
+        let a = t.cosine_average();
+        assert!((a[0] - 1.0).abs() < 1e-14 && (a[1] - 0.5).abs() < 1e-14);
+        // f(μ) = μ: 2∫μ² = 2/3, exact for a linear function.
+        let t = MuTable::build(9, |m| [m; 3]);
+        assert!((t.cosine_average()[0] - 2.0 / 3.0).abs() < 1e-14);
+        assert!((t.eval(0.3f64)[0] - 0.3).abs() < 1e-14);
+    }
+}
