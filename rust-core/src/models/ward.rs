@@ -17,8 +17,8 @@
 //! |---|---|---|---|---|
 //! | `diffuse` | colour | 0.5 | [0, 1] | diffuse reflectance ρd |
 //! | `specular` | colour | 0.2 | [0, 1] | specular reflectance ρs (ρd + ρs ≤ 1 per channel) |
-//! | `alpha_x` | scalar | 0.1 | [0.01, 1] | RMS slope of the lobe along the tangent x |
-//! | `alpha_y` | scalar | 0.1 | [0.01, 1] | RMS slope of the lobe along the bitangent y |
+//! | `alpha_x` | scalar | 0.1 | [0.01, 1] | lobe width along the tangent x (Ward's slope deviation) |
+//! | `alpha_y` | scalar | 0.1 | [0.01, 1] | lobe width along the bitangent y (Ward's slope deviation) |
 //!
 //! Physics: reciprocal. **Not** energy conserving: the `1/√(cosθi cosθo)` factor makes the
 //! directional albedo grow without bound as `θo` approaches grazing (Neumann et al. 1999,
@@ -70,7 +70,7 @@ pub(crate) const PARAMS: &[ParamSpec] = &[
         0.01,
         1.0,
         "",
-        "RMS slope of the lobe along the tangent x",
+        "lobe width along the tangent x (Ward's slope deviation)",
     ),
     ParamSpec::scalar(
         "alpha_y",
@@ -78,7 +78,7 @@ pub(crate) const PARAMS: &[ParamSpec] = &[
         0.01,
         1.0,
         "",
-        "RMS slope of the lobe along the bitangent y",
+        "lobe width along the bitangent y (Ward's slope deviation)",
     ),
 ];
 
@@ -118,9 +118,9 @@ pub struct WardLobes {
     pub diffuse: [f64; 3],
     /// Specular reflectance ρs per channel.
     pub specular: [f64; 3],
-    /// RMS slope along the tangent.
+    /// Lobe width (slope deviation) along the tangent.
     pub alpha_x: f64,
-    /// RMS slope along the bitangent.
+    /// Lobe width (slope deviation) along the bitangent.
     pub alpha_y: f64,
 }
 
