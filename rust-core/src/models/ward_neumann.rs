@@ -5,8 +5,8 @@
 //! f(wi, wo) = ρd/π + ρs · exp(−tan²θh (cos²φh/αx² + sin²φh/αy²)) / (4π αx αy max(cosθi, cosθo))
 //! ```
 //!
-//! The thesis the project started from (its "Neumann" Ward variant) gives the isotropic lobe `exp(−tan²θh/α²)/(4πα² max(cosθi, cosθo))`; the
-//! anisotropic exponent of Ward's eq. 5 is carried over unchanged (the energy bound below
+//! The thesis the project started from (its "Neumann" Ward variant) gives the isotropic
+//! lobe `exp(−tan²θh/α²)/(4πα² max(cosθi, cosθo))`; the anisotropic exponent of Ward's eq. 5 is carried over unchanged (the energy bound below
 //! does not depend on it). In microfacet terms the `max` is Neumann's geometry factor
 //! `G/(4 cosθi cosθo) = 1/(4 max(cosθi, cosθo))`, which also keeps the highlight from
 //! vanishing at grazing ("metallic" look).
