@@ -8,7 +8,8 @@
 //! The thesis the project started from (its "Neumann" Ward variant) gives the isotropic
 //! lobe `exp(−tan²θh/α²)/(4πα² max(cosθi, cosθo))`; the anisotropic exponent of Ward's
 //! eq. 5 is carried over unchanged (the energy bound below does not depend on it). In
-//! microfacet terms the `max` is Neumann's geometry factor `G/(4 cosθi cosθo) = 1/(4 max(cosθi, cosθo))`, which also keeps the highlight from
+//! microfacet terms the `max` is Neumann's geometry factor
+//! `G/(4 cosθi cosθo) = 1/(4 max(cosθi, cosθo))`, which also keeps the highlight from
 //! vanishing at grazing ("metallic" look).
 //!
 //! | parameter | kind | default | range | meaning |
