@@ -13,6 +13,9 @@ macro_rules! models {
         $(pub mod $module;)*
 
         /// One reflectance model with its parameters; see [`all`] for the list.
+        // One value per material, never stored in bulk: variant size does not matter, and boxing
+        // the large ones would add an indirection to every evaluation.
+        #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug)]
         pub enum Model {
             $(

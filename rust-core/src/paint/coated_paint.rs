@@ -394,8 +394,8 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
         let v = super::hammersley3((k * 7919) % n, n);
         let w = cosine_hemisphere(v[1], v[2]);
         if let Some(s) = base.sample(w, *u) {
-            for c in 0..3 {
-                rho_bar[c] += s.weight[c] / n as f64;
+            for (c, r) in rho_bar.iter_mut().enumerate() {
+                *r += s.weight[c] / n as f64;
             }
         }
     }
