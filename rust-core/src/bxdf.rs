@@ -36,6 +36,35 @@ impl<T: Real> BsdfSample<T> {
     }
 }
 
+/// A surface position and its pixel footprint in uv space, for spatially varying effects
+/// (sparkle). The footprint is the parallelogram spanned by the uv derivatives along the
+/// screen axes (ray differentials).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct SurfacePoint {
+    /// Texture coordinates of the shading point.
+    pub uv: [f64; 2],
+    /// ∂uv/∂x along the screen x axis.
+    pub duv_dx: [f64; 2],
+    /// ∂uv/∂y along the screen y axis.
+    pub duv_dy: [f64; 2],
+}
+
+impl SurfacePoint {
+    /// Area of the footprint parallelogram in uv units² (0 for a degenerate footprint).
+    #[inline]
+    #[must_use]
+    pub fn footprint_area(&self) -> f64 {
+        (self.duv_dx[0] * self.duv_dy[1] - self.duv_dx[1] * self.duv_dy[0]).abs()
+    }
+
+    /// True when every component is finite.
+    #[inline]
+    #[must_use]
+    pub fn is_finite(&self) -> bool {
+        self.uv.iter().chain(&self.duv_dx).chain(&self.duv_dy).all(|v| v.is_finite())
+    }
+}
+
 /// A reflectance model: the BRDF, its sampler and the sampler's density, side by side.
 ///
 /// The caller (see [`crate::models::Model`]) guarantees unit, finite directions. Methods must
@@ -47,6 +76,20 @@ pub trait Bxdf {
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T;
     /// Samples `wi` for `wo` from three uniform numbers (first one picks a lobe).
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>>;
+
+    /// `f_r` at a surface point with a footprint (sparkle). Models without spatial variation
+    /// return the mean BRDF [`Bxdf::eval`].
+    #[inline]
+    fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, _at: &SurfacePoint) -> Rgb<T> {
+        self.eval(wi, wo)
+    }
+
+    /// A sample at a surface point. Spatially varying models sample their mean lobe, so the
+    /// density is [`Bxdf::pdf`] everywhere and only the weight changes.
+    #[inline]
+    fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], _at: &SurfacePoint) -> Option<BsdfSample<T>> {
+        self.sample(wo, u)
+    }
 }
 
 /// What a model claims; `lacquer check` verifies each claim and reports the others.

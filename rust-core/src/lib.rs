@@ -44,7 +44,7 @@ pub mod sampling;
 pub mod special;
 pub mod table;
 
-pub use bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+pub use bxdf::{BsdfSample, Bxdf, Claims, ModelInfo, SurfacePoint};
 pub use error::Error;
 pub use material::Material;
 pub use math::{Rgb, Vec3};

@@ -4,7 +4,7 @@
 //! finite give zero (and `None` for sampling); directions that are finite but not unit
 //! length are normalised first.
 
-use crate::bxdf::{BsdfSample, ModelInfo};
+use crate::bxdf::{BsdfSample, ModelInfo, SurfacePoint};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
 use crate::models::{self, Model};
@@ -137,5 +137,34 @@ impl Material {
         let one_minus = crate::sampling::one_minus_epsilon::<T>();
         let u = u.map(|x| x.clamp_to(T::zero(), one_minus));
         self.model.sample(wo, u)
+    }
+
+    /// `f_r(wi, wo)` at a surface point with a footprint (sparkle). A non-finite surface point
+    /// falls back to the mean BRDF.
+    #[inline]
+    #[must_use]
+    pub fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+        if !at.is_finite() {
+            return self.eval(wi, wo);
+        }
+        match (sanitize(wi), sanitize(wo)) {
+            (Some(wi), Some(wo)) => self.model.eval_at(wi, wo, at),
+            _ => Rgb::zero(),
+        }
+    }
+
+    /// Samples at a surface point with a footprint; the density is [`Material::pdf`].
+    #[inline]
+    #[must_use]
+    pub fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
+        if !at.is_finite() {
+            return self.sample(wo, u);
+        }
+        let wo = sanitize(wo)?;
+        if !u.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        let one_minus = crate::sampling::one_minus_epsilon::<T>();
+        self.model.sample_at(wo, u.map(|x| x.clamp_to(T::zero(), one_minus)), at)
     }
 }

@@ -3,7 +3,7 @@
 //! Adding a model: write `models/<name>.rs` with a `pub static INFO: ModelInfo` and a type
 //! implementing [`Bxdf`], then add one line to the `models!` list below.
 
-use crate::bxdf::{BsdfSample, Bxdf, ModelInfo};
+use crate::bxdf::{BsdfSample, Bxdf, ModelInfo, SurfacePoint};
 use crate::frame::both_above;
 use crate::math::{Rgb, Vec3};
 use crate::real::Real;
@@ -43,6 +43,14 @@ macro_rules! models {
             #[inline]
             fn sample_unchecked<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
                 match self { $(Model::$variant(m) => m.sample(wo, u),)* }
+            }
+            #[inline]
+            fn eval_at_unchecked<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+                match self { $(Model::$variant(m) => m.eval_at(wi, wo, at),)* }
+            }
+            #[inline]
+            fn sample_at_unchecked<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
+                match self { $(Model::$variant(m) => m.sample_at(wo, u, at),)* }
             }
         }
     };
@@ -92,7 +100,31 @@ impl Model {
         if !(wo.z > T::zero()) {
             return None;
         }
-        let s = self.sample_unchecked(wo, u)?;
+        Self::valid_sample(self.sample_unchecked(wo, u)?)
+    }
+
+    /// `f_r` at a surface point with a footprint (sparkle); the mean BRDF for other models.
+    #[inline]
+    #[must_use]
+    pub fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+        if !both_above(wi, wo) {
+            return Rgb::zero();
+        }
+        self.eval_at_unchecked(wi, wo, at)
+    }
+
+    /// A sample at a surface point with a footprint; its density is [`Model::pdf`].
+    #[inline]
+    #[must_use]
+    pub fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
+        if !(wo.z > T::zero()) {
+            return None;
+        }
+        Self::valid_sample(self.sample_at_unchecked(wo, u, at)?)
+    }
+
+    #[inline]
+    fn valid_sample<T: Real>(s: BsdfSample<T>) -> Option<BsdfSample<T>> {
         let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
         (valid && (s.delta || s.wi.z > T::zero())).then_some(s)
     }
