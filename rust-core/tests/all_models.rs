@@ -29,6 +29,26 @@ fn every_model_passes_its_claims() {
     assert!(failures.is_empty(), "claims failed:\n{}", failures.join("\n"));
 }
 
+/// Every preset is a valid material and passes every claim of its model.
+#[test]
+fn every_preset_passes_its_claims() {
+    let failures: Vec<String> = check::check_presets(&CheckConfig::quick())
+        .into_iter()
+        .filter(|p| !p.report.passed())
+        .map(|p| {
+            let bad: Vec<String> = p
+                .report
+                .verdicts
+                .iter()
+                .filter(|v| !v.ok())
+                .map(|v| format!("{} = {:.3e}", v.check, v.value))
+                .collect();
+            format!("{}: {}", p.preset, bad.join(", "))
+        })
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Every model documents every parameter and builds from `{"model": name}` alone.
 #[test]
 fn every_model_builds_from_its_name_alone() {

@@ -100,7 +100,7 @@ fn list_presets(as_json: bool) -> ExitCode {
             .iter()
             .map(|p| {
                 let material = Material::from_json(p.json).map(|m| m.to_json()).unwrap_or(Value::Null);
-                json!({"name": p.name, "description": p.description, "material": material})
+                json!({"name": p.name, "label": p.label, "description": p.description, "material": material})
             })
             .collect();
         println!("{}", serde_json::to_string_pretty(&list).expect("serialisable"));
@@ -165,12 +165,33 @@ fn print_model_report(r: &ModelReport) {
     }
 }
 
+fn print_preset_report(p: &check::PresetReport) {
+    let r = &p.report;
+    let min_p = r.chi2.iter().map(|c| c.p_value).fold(1.0, f64::min);
+    println!(
+        "preset {:<28} {}  reciprocity {:9.2e}  furnace [{:.4}, {:.4}]  χ² min p {:.3}  hard-case failures {}  f32 err {:.1e}",
+        p.preset,
+        if r.passed() { "PASS" } else { "FAIL" },
+        r.reciprocity.max_relative_error,
+        r.furnace.min_albedo,
+        r.furnace.max_albedo,
+        min_p,
+        r.hard_cases.failures(),
+        r.precision.max_relative_error
+    );
+    for v in r.verdicts.iter().filter(|v| v.status == "fail") {
+        println!("    FAIL {:<18} {:.3e} (limit {:.3e}): {}", v.check, v.value, v.limit, v.note);
+    }
+}
+
 fn run_check(args: CheckArgs) -> ExitCode {
     let mut cfg = if args.quick { CheckConfig::quick() } else { CheckConfig::standard() };
     if let Some(seed) = args.seed {
         cfg.seed = seed;
     }
+    let mut preset_reports = Vec::new();
     let reports: Vec<ModelReport> = if args.all {
+        preset_reports = check::check_presets(&cfg);
         check::check_all(&cfg)
     } else if let Some(name) = &args.model {
         match models::find(name) {
@@ -211,12 +232,29 @@ fn run_check(args: CheckArgs) -> ExitCode {
         eprintln!("error: give --all, --model NAME, --material JSON_OR_FILE or --preset NAME");
         return ExitCode::from(2);
     };
-    let passed = reports.iter().all(|r| r.passed);
+    let passed = reports.iter().all(|r| r.passed) && preset_reports.iter().all(|p| p.report.passed());
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&reports).expect("serialisable"));
+        let out = if args.all {
+            json!({"models": reports, "presets": preset_reports})
+        } else {
+            serde_json::to_value(&reports).expect("serialisable")
+        };
+        println!("{}", serde_json::to_string_pretty(&out).expect("serialisable"));
     } else {
         for r in &reports {
             print_model_report(r);
+        }
+        for p in &preset_reports {
+            print_preset_report(p);
+        }
+        if !preset_reports.is_empty() {
+            let failed: Vec<_> = preset_reports.iter().filter(|p| !p.report.passed()).map(|p| p.preset).collect();
+            println!(
+                "{} presets checked, {} failed{}",
+                preset_reports.len(),
+                failed.len(),
+                if failed.is_empty() { String::new() } else { format!(": {}", failed.join(", ")) }
+            );
         }
         let failed: Vec<_> = reports.iter().filter(|r| !r.passed).map(|r| r.model).collect();
         println!(

@@ -370,25 +370,47 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
     ModelReport { model: info.name, claims: info.claims, materials, parameter_extremes: extremes, summary, passed }
 }
 
-/// Checks every registered model, spreading models over the available cores.
-#[must_use]
-pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
-    let infos = crate::models::all();
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(infos.len()).max(1);
+/// Runs `job` on every item, spreading items over the available cores; results keep the order.
+fn parallel_map<I: Sync, R: Send + Clone>(items: &[I], job: impl Fn(&I) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len()).max(1);
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut results: Vec<Option<ModelReport>> = vec![None; infos.len()];
+    let mut results: Vec<Option<R>> = vec![None; items.len()];
     let slots = std::sync::Mutex::new(&mut results);
     std::thread::scope(|s| {
         for _ in 0..threads {
             s.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if i >= infos.len() {
+                if i >= items.len() {
                     break;
                 }
-                let report = check_model(infos[i], cfg);
-                slots.lock().expect("no panics while holding the lock")[i] = Some(report);
+                let r = job(&items[i]);
+                slots.lock().expect("no panics while holding the lock")[i] = Some(r);
             });
         }
     });
-    results.into_iter().map(|r| r.expect("every model checked")).collect()
+    results.into_iter().map(|r| r.expect("every item processed")).collect()
+}
+
+/// Checks every registered model.
+#[must_use]
+pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
+    parallel_map(crate::models::all(), |info| check_model(info, cfg))
+}
+
+/// A preset's check report.
+#[derive(Clone, Debug, Serialize)]
+pub struct PresetReport {
+    /// Preset name.
+    pub preset: &'static str,
+    /// The checks on its material.
+    pub report: MaterialReport,
+}
+
+/// Checks every preset as a material (all checks, χ² included).
+#[must_use]
+pub fn check_presets(cfg: &CheckConfig) -> Vec<PresetReport> {
+    parallel_map(crate::presets::PRESETS, |p| {
+        let m = Material::from_json(p.json).expect("presets are valid materials");
+        PresetReport { preset: p.name, report: check_material(&m, cfg, "preset", true) }
+    })
 }
