@@ -1,9 +1,9 @@
 //! Sparkle: the flake lobes of the basecoat resolved into individual flakes at a surface point
 //! with a pixel footprint.
 //!
-//! The mean flake lobe `c · R(wi·h) D(h) G2 / (4 cos θi cos θo)` (see [`super::flakes`]) is what
-//! a footprint holding infinitely many flakes sees. A real footprint holds a finite, random
-//! number of flakes; a flake reflects toward the viewer only when its normal is (nearly) the
+//! The mean flake lobe `c · R(wi·h) D(h) G2 / (4 cos θi cos θo)` (see [`super::flakes`]) is
+//! what a footprint holding infinitely many flakes sees. A real footprint holds a finite,
+//! random number of flakes; a flake reflects toward the viewer only when its normal is (nearly) the
 //! half vector `h`. With a surface point and footprint, each flake population's lobe is
 //! multiplied by
 //!
@@ -27,8 +27,9 @@
 //! surface and split it hierarchically with binomial draws; Deliot & Belcour 2023 draw
 //! `Binomial(N, p)` per texel. We use Poisson because (a) at paint coverages (thesis: 0–8 %)
 //! flakes are dilute and nothing fixes their number inside a footprint, (b) for `p = 1/K²`
-//! the two laws differ by at most `p` in total variation (Le Cam), and (c) sums of independent
-//! Poisson counts are Poisson, which makes the level-of-detail blend below *exact*.
+//! the two laws differ by at most `p` in total variation (Barbour & Hall 1984), and (c) sums
+//! of independent Poisson counts are Poisson, which makes the level-of-detail blend below
+//! *exact*.
 //!
 //! ## Direction cells
 //! The half vector `h` (in the binder, where the flakes are) is mapped to the unit square by
@@ -75,19 +76,24 @@
 //!
 //! `w1 = (4^t − 1)/3`, `w0 = 1 − w1`,
 //!
-//! chosen so that `w0 N_l0 + w1 N_l1 = N_l0 4^t = N`. Then `n ~ Poisson(N p)` *exactly*: at every
-//! position the multiplier has the law of a footprint of area `A`, not only its mean. (Linearly
-//! blending the two levels' ratios, as the LOD schemes of Zirr & Kaplanyan 2016 and Chermain et
-//! al. 2020 do with their per-level NDFs, keeps the mean but under-estimates the variance by
-//! up to 37 % midway; Deliot & Belcour's binomial distribution with weights `1 − t, t`
-//! over-estimates it by up to 25 %.) The draw is continuous across integer `ℓ`: at `t → 1`,
-//! `n0 → 0` and `n1` uses the level-`l1` key, which is the `l0` key just past the integer.
+//! chosen so that `w0 N_l0 + w1 N_l1 = N_l0 4^t = N`. Then `n ~ Poisson(N p)` *exactly*: at
+//! every position the multiplier has the law of a footprint of area `A`, not only its mean. For
+//! comparison, with independent levels and the true variance `1/(N p)`: linearly blending the
+//! two levels' ratios with weights `1 − t, t` (the LOD blend of Zirr & Kaplanyan 2016 and
+//! Chermain et al. 2020) keeps the mean but gives `((1 − t)² + t²/4) 4^t` times the variance,
+//! down to 0.56 (at t ≈ 0.68); distributing the trials with weights `1 − t, t` (`w_i N_i`
+//! trials per grid, our reading of Deliot & Belcour's shader) gives `(1 − 3t/4) 4^t`, up to
+//! 1.26 (t ≈ 0.61). The weights above make it exactly 1.
+//!
+//! The draw is continuous across integer `ℓ`: at `t → 1`, `n0 → 0` and `n1` uses the level-`l1`
+//! key, which is the `l0` key just past the integer.
 //!
 //! Each count comes from a hash of (population, level, cell ix, iy, direction cell) — the
 //! SplitMix64 finaliser (Steele, Lea & Flood 2014) — by inverting the Poisson CDF (exact for
 //! `λ < 40`; above, the normal approximation with continuity correction, whose mean is
-//! exact and whose skewness error is below `1/√40`). Deterministic and stable across frames;
-//! for a fixed position the count only grows, one flake at a time, as the footprint grows.
+//! exact and whose only error is the missing skewness `1/√λ < 0.16`). Deterministic and
+//! stable across frames; as the footprint grows at a fixed position, the counts change one
+//! flake at a time (the finer level's flakes fade out as the coarser level's fade in).
 //! Past `N p > 10¹²` (relative fluctuation below 10⁻⁶) the multiplier is exactly 1.
 //!
 //! ## Properties
