@@ -27,6 +27,30 @@ pub fn concentric_disk<T: Real>(u1: T, u2: T) -> (T, T) {
     (r * theta.cos(), r * theta.sin())
 }
 
+/// Inverse of [`concentric_disk`]: the point of the unit square that maps to `(x, y)` on the
+/// unit disk. Equal-area like the forward map, so a uniform grid on the square is a grid of
+/// equal-area, nearly square cells on the disk.
+#[inline]
+#[must_use]
+pub fn concentric_disk_inverse<T: Real>(x: T, y: T) -> (T, T) {
+    let r = (x * x + y * y).sqrt();
+    if !(r > T::zero()) {
+        return (T::of(0.5), T::of(0.5));
+    }
+    let four_over_pi = T::of(4.0) * T::FRAC_1_PI();
+    // Forward: |a| ≥ |b| gives (a cos θ, a sin θ) with θ = π/4 · b/a ∈ [−π/4, π/4], so
+    // |x| ≥ |y| and sign(x) = sign(a); otherwise θ = π/2 − π/4 · a/b and sign(y) = sign(b).
+    let (a, b) = if x.abs() >= y.abs() {
+        let a = if x < T::zero() { -r } else { r };
+        (a, a * (y / x).atan() * four_over_pi)
+    } else {
+        let b = if y < T::zero() { -r } else { r };
+        (b * (x / y).atan() * four_over_pi, b)
+    };
+    let half = T::of(0.5);
+    ((a + T::one()) * half, (b + T::one()) * half)
+}
+
 /// Cosine-weighted hemisphere around z (Malley's method).
 #[inline]
 #[must_use]
@@ -146,4 +170,26 @@ pub fn hammersley3(k: usize, n: usize) -> [f64; 3] {
 #[must_use]
 pub fn radical_inverse(i: u32) -> f64 {
     i.reverse_bits() as f64 * (1.0 / 4_294_967_296.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The inverse concentric map undoes the forward map everywhere on the square, including
+    /// the diagonals and the edges where the forward map switches branches.
+    #[test]
+    fn concentric_disk_inverse_round_trips() {
+        let n = 41;
+        for i in 0..=n {
+            for j in 0..=n {
+                let (u1, u2) = (i as f64 / n as f64, j as f64 / n as f64);
+                let (x, y) = concentric_disk(u1, u2);
+                assert!(x * x + y * y <= 1.0 + 1e-12);
+                let (v1, v2) = concentric_disk_inverse(x, y);
+                assert!((v1 - u1).abs() < 1e-12 && (v2 - u2).abs() < 1e-12, "({u1}, {u2}) -> ({v1}, {v2})");
+            }
+        }
+        assert_eq!(concentric_disk_inverse(0.0f64, 0.0), (0.5, 0.5));
+    }
 }

@@ -52,6 +52,12 @@ macro_rules! models {
             fn sample_at_unchecked<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
                 match self { $(Model::$variant(m) => m.sample_at(wo, u, at),)* }
             }
+            /// True when `eval_at` can differ from `eval` (sparkle).
+            #[inline]
+            #[must_use]
+            pub fn spatially_varying(&self) -> bool {
+                match self { $(Model::$variant(m) => m.spatially_varying(),)* }
+            }
         }
     };
 }

@@ -5,6 +5,7 @@ pub mod basecoat;
 pub mod coat;
 pub mod coated_paint;
 pub mod flakes;
+pub mod sparkle;
 pub mod thin_film;
 
 pub use crate::sampling::{hammersley3, radical_inverse};
