@@ -58,6 +58,7 @@ macro_rules! models {
 
 models! {
     CoatedPaint(coated_paint::CoatedPaint),
+    FastPhong(fast_phong::FastPhong),
     Lambert(lambert::Lambert),
     ModifiedPhong(modified_phong::ModifiedPhong),
     NeumannStretchPhong(neumann_stretch_phong::NeumannStretchPhong),
