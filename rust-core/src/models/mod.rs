@@ -57,10 +57,12 @@ macro_rules! models {
 }
 
 models! {
+    BlinnPhong(blinn_phong::BlinnPhong),
     CoatedPaint(coated_paint::CoatedPaint),
     FastPhong(fast_phong::FastPhong),
     Lambert(lambert::Lambert),
     ModifiedPhong(modified_phong::ModifiedPhong),
+    NeumannStretchBlinnPhong(neumann_stretch_blinn_phong::NeumannStretchBlinnPhong),
     NeumannStretchPhong(neumann_stretch_phong::NeumannStretchPhong),
     Phong(phong::Phong),
     Ward(ward::Ward),
