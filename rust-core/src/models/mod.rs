@@ -60,6 +60,7 @@ models! {
     BlinnPhong(blinn_phong::BlinnPhong),
     CoatedPaint(coated_paint::CoatedPaint),
     FastPhong(fast_phong::FastPhong),
+    Lafortune(lafortune::Lafortune),
     Lambert(lambert::Lambert),
     ModifiedPhong(modified_phong::ModifiedPhong),
     NeumannStretchBlinnPhong(neumann_stretch_blinn_phong::NeumannStretchBlinnPhong),
