@@ -57,6 +57,8 @@ macro_rules! models {
 }
 
 models! {
+    AshikhminShirley(ashikhmin_shirley::AshikhminShirley),
+    AshikhminShirleyLambert(ashikhmin_shirley_lambert::AshikhminShirleyLambert),
     BlinnPhong(blinn_phong::BlinnPhong),
     CoatedPaint(coated_paint::CoatedPaint),
     FastPhong(fast_phong::FastPhong),
