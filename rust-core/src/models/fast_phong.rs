@@ -106,7 +106,7 @@ pub struct FastPhong {
     pub exponent: f64,
     /// `N_L = 1/(2π ∫ L(μ) μ dμ)`.
     pub norm: f64,
-    /// `L` as a function of the versine `v = 1 − cos α` (see [`versine_table`]); also the
+    /// `L` as a function of the versine `v = 1 − cos α` (node `j` at `v = j/(m−1)`); also the
     /// sampling density of `v`.
     pub table: PiecewiseLinear,
 }
