@@ -20,13 +20,13 @@
 //! ([`ThinFilm::table`]) and interpolates linearly at run time. Over the parameter range
 //! (0–1000 nm) the table is within CIEDE2000 0.22 of a 0.25 nm spectral integration (worst
 //! case midway between nodes; the 2 nm integration itself is within 0.005), and a lookup costs
-//! about 13 ns against about 1.5 µs for BB17 and 27 µs for the 2 nm integration. So the table
+//! about 10 ns against about 1 µs for BB17 and 20 µs for the 2 nm integration. So the table
 //! stays: it is both the fastest and, for these films, as exact as the spectrum.
 //! BB17 (14-Gaussian fit) is within ΔE00 0.13 of the converged spectrum at every thickness
 //! measured, including 2–5 µm, where point sampling of the spectrum aliases (2 nm steps: up to
 //! ΔE00 1.2; 10 nm steps: up to 25, and already 2.0 at 610–1000 nm). It is kept as the analytic
 //! path and the anti-aliasing reference for thick films, and would be the way to build the table
-//! faster (64 × 1.5 µs instead of 64 × 27 µs) should material creation time ever matter. A fit the
+//! faster (64 × 1 µs instead of 64 × 20 µs) should material creation time ever matter. A fit the
 //! size of the paper's (7 Gaussians, [`CMF_FIT_COMPACT`]) costs up to ΔE00 4.7 in the visible
 //! range of thicknesses: the accuracy of BB17 is the accuracy of its sensitivity fit.
 
