@@ -87,6 +87,22 @@ pub fn mirror_z<T: Real>(w: Vec3<T>) -> Vec3<T> {
     Vec3::new(-w.x, -w.y, w.z)
 }
 
+/// Refraction of `w` (pointing away from the surface on the incident side) through an
+/// interface with normal `n` on the same side as `w` (`w·n > 0`), for `eta` = n_transmitted /
+/// n_incident. Returns the transmitted direction (pointing away on the other side), or `None`
+/// under total internal reflection.
+#[inline]
+#[must_use]
+pub fn refract<T: Real>(w: Vec3<T>, n: Vec3<T>, eta: T) -> Option<Vec3<T>> {
+    let cos_i = w.dot(n);
+    let sin2_t = (T::one() - cos_i * cos_i).max(T::zero()) / (eta * eta);
+    if sin2_t >= T::one() {
+        return None;
+    }
+    let cos_t = (T::one() - sin2_t).sqrt();
+    Some(n * (cos_i / eta - cos_t) - w / eta)
+}
+
 /// The unit half vector `(wi + wo)/|wi + wo|`, or `None` when it is undefined
 /// (`wi = -wo`, or a non-finite sum).
 #[inline(always)]
@@ -173,5 +189,23 @@ mod tests {
         assert!((versine_between(p, q) as f64 - exact).abs() < 1e-5 * exact);
         assert!((versine_z(q) as f64 - exact).abs() < 1e-5 * exact);
         assert_eq!(1.0 - p.dot(q), 0.0);
+    }
+
+    /// Snell's law `sin θi = η sin θt`, the transmitted direction in the plane of incidence on
+    /// the far side, unit length; total internal reflection past the critical angle.
+    #[test]
+    fn refract_obeys_snell() {
+        let n = Vec3::new(0.0f64, 0.0, 1.0);
+        let (si, eta) = (0.6f64, 1.5);
+        let w = Vec3::new(si * 0.6, si * 0.8, (1.0 - si * si).sqrt());
+        let t = refract(w, n, eta).unwrap();
+        assert!((t.length() - 1.0).abs() < 1e-14);
+        assert!(t.z < 0.0);
+        assert!((sin_theta(t) * eta - si).abs() < 1e-14);
+        // Same azimuth plane, on the opposite side of the normal.
+        assert!((t.x / t.y - w.x / w.y).abs() < 1e-12 && t.x * w.x < 0.0);
+        // From glass (η = 1/1.5) at sin θ = 0.7 > 1/1.5: total internal reflection.
+        let w = Vec3::new(0.7f64, 0.0, (1.0f64 - 0.49).sqrt());
+        assert!(refract(w, n, 1.0 / 1.5).is_none());
     }
 }

@@ -148,6 +148,21 @@ pub fn balance_heuristic<T: Real>(pdf_a: T, pdf_b: T) -> T {
     }
 }
 
+/// Power heuristic (β = 2) weight of strategy `a` against strategy `b` (one sample each).
+#[inline]
+#[must_use]
+pub fn power_heuristic<T: Real>(pdf_a: T, pdf_b: T) -> T {
+    if !(pdf_a > T::zero()) {
+        return T::zero();
+    }
+    // Written as a ratio so that neither tiny nor huge densities under- or overflow.
+    let r = pdf_b.max(T::zero()) / pdf_a;
+    if r.is_nan() {
+        return T::of(0.5); // both infinite
+    }
+    T::one() / (T::one() + r * r)
+}
+
 /// Chooses one of several lobes from their selection weights using `u`; returns the index
 /// and `u` rescaled to `[0, 1)` for reuse. Weights need not be normalised.
 #[inline]
@@ -368,5 +383,15 @@ mod tests {
             let (a, b) = (d.sample(u), d.sample(u as f32) as f64);
             assert!((a - b).abs() < 1e-5, "{a} {b}");
         }
+    }
+
+    #[test]
+    fn power_heuristic_weights_sum_to_one() {
+        for (a, b) in [(1.0f64, 3.0), (0.2, 0.0), (5e-200, 7e-200), (1e200, 1.0)] {
+            let s = power_heuristic(a, b) + power_heuristic(b, a);
+            assert!((s - 1.0).abs() < 1e-12, "{a} {b}: {s}");
+        }
+        assert_eq!(power_heuristic(1.0f64, 3.0), 0.1);
+        assert_eq!(power_heuristic(0.0f64, 0.0), 0.0);
     }
 }
