@@ -1,1 +1,162 @@
-fn main() {}
+//! Per-call overhead of the C ABI against the Rust API, in ns per element, for n = 1 and
+//! n = 10^6 (eval and sample, f32, Lambert: the cheapest model, so the overhead is most
+//! visible).
+//!
+//! The C side is called exactly as a host calls it: through `dlopen` of the built
+//! `liblacquer.so` (found next to this bench's `deps/` folder, or at `$LACQUER_LIBRARY`).
+//! The Rust side is the same loop over the same interleaved arrays, calling
+//! `Material::eval` / `Material::sample` directly.
+//!
+//! Run (short, as recorded in docs/c-api.md):
+//!   cargo build --release -p lacquer-capi
+//!   cargo bench -p lacquer-capi --bench overhead -- --warm-up-time 1 --measurement-time 3
+
+use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use lacquer_core::rng::Pcg32;
+use lacquer_core::{Material, Vec3};
+use std::ffi::{c_char, c_void};
+use std::path::PathBuf;
+
+type FromJson = unsafe extern "C" fn(*const c_char, *mut *mut c_void) -> i32;
+type Free = unsafe extern "C" fn(*mut c_void);
+type Eval = unsafe extern "C" fn(*const c_void, usize, *const f32, *const f32, *mut f32) -> i32;
+type SampleFn = unsafe extern "C" fn(
+    *const c_void,
+    usize,
+    *const f32,
+    *const f32,
+    *mut f32,
+    *mut f32,
+    *mut f32,
+) -> i32;
+
+const JSON: &str = r#"{"model": "lambert", "albedo": [0.8, 0.6, 0.4]}"#;
+
+fn library_path() -> PathBuf {
+    if let Some(p) = std::env::var_os("LACQUER_LIBRARY") {
+        return p.into();
+    }
+    // target/<profile>/deps/overhead-<hash> -> target/<profile>/liblacquer.so
+    let exe = std::env::current_exe().expect("bench path");
+    exe.parent()
+        .and_then(|deps| deps.parent())
+        .map(|dir| dir.join("liblacquer.so"))
+        .expect("target folder")
+}
+
+fn inputs(n: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let mut rng = Pcg32::new(5, 6);
+    let mut wi = Vec::with_capacity(3 * n);
+    let mut wo = Vec::with_capacity(3 * n);
+    let mut u = Vec::with_capacity(3 * n);
+    for _ in 0..n {
+        for dst in [&mut wi, &mut wo] {
+            let w = lacquer_core::sampling::uniform_hemisphere(rng.uniform(), rng.uniform());
+            dst.extend([w.x as f32, w.y as f32, w.z as f32]);
+        }
+        u.extend(rng.uniform3().map(|x| x as f32));
+    }
+    (wi, wo, u)
+}
+
+/// The Rust API over the same interleaved arrays.
+fn rust_eval(m: &Material, wi: &[f32], wo: &[f32], f: &mut [f32]) {
+    for ((a, b), out) in wi
+        .chunks_exact(3)
+        .zip(wo.chunks_exact(3))
+        .zip(f.chunks_exact_mut(3))
+    {
+        let v = m.eval(Vec3::new(a[0], a[1], a[2]), Vec3::new(b[0], b[1], b[2]));
+        out.copy_from_slice(&v.to_array());
+    }
+}
+
+fn rust_sample(m: &Material, wo: &[f32], u: &[f32], wi: &mut [f32], w: &mut [f32], p: &mut [f32]) {
+    for (i, (o, uu)) in wo.chunks_exact(3).zip(u.chunks_exact(3)).enumerate() {
+        match m.sample(Vec3::new(o[0], o[1], o[2]), [uu[0], uu[1], uu[2]]) {
+            Some(s) => {
+                wi[3 * i..3 * i + 3].copy_from_slice(&[s.wi.x, s.wi.y, s.wi.z]);
+                w[3 * i..3 * i + 3].copy_from_slice(&s.weight.to_array());
+                p[i] = s.pdf;
+            }
+            None => {
+                wi[3 * i..3 * i + 3].fill(0.0);
+                w[3 * i..3 * i + 3].fill(0.0);
+                p[i] = 0.0;
+            }
+        }
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let path = library_path();
+    // SAFETY: loading our own library, whose initialisers are Rust std's.
+    let lib = unsafe { libloading::Library::new(&path) }
+        .unwrap_or_else(|e| panic!("cannot load {} ({e}); run `cargo build --release -p lacquer-capi` first", path.display()));
+    let (from_json, free, eval, sample) = unsafe {
+        (
+            *lib.get::<FromJson>(b"lq_material_from_json\0").unwrap(),
+            *lib.get::<Free>(b"lq_material_free\0").unwrap(),
+            *lib.get::<Eval>(b"lq_eval\0").unwrap(),
+            *lib.get::<SampleFn>(b"lq_sample\0").unwrap(),
+        )
+    };
+    let json = std::ffi::CString::new(JSON).unwrap();
+    let mut handle = std::ptr::null_mut();
+    assert_eq!(unsafe { from_json(json.as_ptr(), &mut handle) }, 0);
+    let m = Material::from_json(JSON).unwrap();
+
+    for n in [1usize, 1_000_000] {
+        let (wi, wo, u) = inputs(n);
+        let mut f = vec![0f32; 3 * n];
+        let (mut swi, mut sw, mut sp) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n]);
+
+        // Same answers both ways (the adapter adds no physics).
+        let mut f_rust = vec![0f32; 3 * n];
+        rust_eval(&m, &wi, &wo, &mut f_rust);
+        assert_eq!(unsafe { eval(handle, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr()) }, 0);
+        assert_eq!(f, f_rust);
+
+        let mut g = c.benchmark_group("eval_f32");
+        g.throughput(Throughput::Elements(n as u64));
+        if n > 1 {
+            g.sample_size(10);
+        }
+        g.bench_with_input(BenchmarkId::new("rust_api", n), &n, |b, _| {
+            b.iter(|| rust_eval(&m, black_box(&wi), black_box(&wo), black_box(&mut f)));
+        });
+        g.bench_with_input(BenchmarkId::new("c_abi", n), &n, |b, &n| {
+            b.iter(|| unsafe {
+                eval(handle, black_box(n), wi.as_ptr(), wo.as_ptr(), black_box(f.as_mut_ptr()))
+            });
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group("sample_f32");
+        g.throughput(Throughput::Elements(n as u64));
+        if n > 1 {
+            g.sample_size(10);
+        }
+        g.bench_with_input(BenchmarkId::new("rust_api", n), &n, |b, _| {
+            b.iter(|| rust_sample(&m, black_box(&wo), black_box(&u), &mut swi, &mut sw, &mut sp));
+        });
+        g.bench_with_input(BenchmarkId::new("c_abi", n), &n, |b, &n| {
+            b.iter(|| unsafe {
+                sample(
+                    handle,
+                    black_box(n),
+                    wo.as_ptr(),
+                    u.as_ptr(),
+                    swi.as_mut_ptr(),
+                    sw.as_mut_ptr(),
+                    black_box(sp.as_mut_ptr()),
+                )
+            });
+        });
+        g.finish();
+    }
+    unsafe { free(handle) };
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

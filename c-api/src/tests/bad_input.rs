@@ -624,13 +624,15 @@ fn cases() -> Vec<Case> {
     ));
     v.push(batch_case(
         "lq_sample",
-        "`u` outside [0, 1): (1.0, -3, 7)",
+        "`u` outside [0, 1): (7, 0.3, 0.6) and (-2, 0.3, 0.6)",
         LQ_OK,
         "",
         || {
-            let o = sample_case([0.0, 0.0, 1.0], [1.0, -3.0, 7.0]);
+            let o = sample_case([0.0, 0.0, 1.0], [7.0, 0.3, 0.6]);
+            let o2 = sample_case([0.0, 0.0, 1.0], [-2.0, 0.3, 0.6]);
+            assert_eq!(o2.outputs, o.outputs);
             Outcome {
-                outputs: "u clamped into [0, 1); a valid sample",
+                outputs: "u clamped into [0, 1); a valid sample (u[1] or u[2] clamped to an edge of the square may map to the horizon: a failed sample)",
                 ..o
             }
         },
