@@ -91,8 +91,12 @@ fn rust_sample(m: &Material, wo: &[f32], u: &[f32], wi: &mut [f32], w: &mut [f32
 fn bench(c: &mut Criterion) {
     let path = library_path();
     // SAFETY: loading our own library, whose initialisers are Rust std's.
-    let lib = unsafe { libloading::Library::new(&path) }
-        .unwrap_or_else(|e| panic!("cannot load {} ({e}); run `cargo build --release -p lacquer-capi` first", path.display()));
+    let lib = unsafe { libloading::Library::new(&path) }.unwrap_or_else(|e| {
+        panic!(
+            "cannot load {} ({e}); run `cargo build --release -p lacquer-capi` first",
+            path.display()
+        )
+    });
     let (from_json, free, eval, sample) = unsafe {
         (
             *lib.get::<FromJson>(b"lq_material_from_json\0").unwrap(),
@@ -114,7 +118,10 @@ fn bench(c: &mut Criterion) {
         // Same answers both ways (the adapter adds no physics).
         let mut f_rust = vec![0f32; 3 * n];
         rust_eval(&m, &wi, &wo, &mut f_rust);
-        assert_eq!(unsafe { eval(handle, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr()) }, 0);
+        assert_eq!(
+            unsafe { eval(handle, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr()) },
+            0
+        );
         assert_eq!(f, f_rust);
 
         let mut g = c.benchmark_group("eval_f32");
@@ -127,7 +134,13 @@ fn bench(c: &mut Criterion) {
         });
         g.bench_with_input(BenchmarkId::new("c_abi", n), &n, |b, &n| {
             b.iter(|| unsafe {
-                eval(handle, black_box(n), wi.as_ptr(), wo.as_ptr(), black_box(f.as_mut_ptr()))
+                eval(
+                    handle,
+                    black_box(n),
+                    wi.as_ptr(),
+                    wo.as_ptr(),
+                    black_box(f.as_mut_ptr()),
+                )
             });
         });
         g.finish();
@@ -138,7 +151,16 @@ fn bench(c: &mut Criterion) {
             g.sample_size(10);
         }
         g.bench_with_input(BenchmarkId::new("rust_api", n), &n, |b, _| {
-            b.iter(|| rust_sample(&m, black_box(&wo), black_box(&u), &mut swi, &mut sw, &mut sp));
+            b.iter(|| {
+                rust_sample(
+                    &m,
+                    black_box(&wo),
+                    black_box(&u),
+                    &mut swi,
+                    &mut sw,
+                    &mut sp,
+                )
+            });
         });
         g.bench_with_input(BenchmarkId::new("c_abi", n), &n, |b, &n| {
             b.iter(|| unsafe {

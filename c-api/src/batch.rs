@@ -46,6 +46,20 @@ fn all_finite<T: Real>(a: &[T], i: usize, per: usize) -> bool {
     a[per * i..per * (i + 1)].iter().all(|x| x.is_finite())
 }
 
+/// A number for a message: plain for ordinary magnitudes, scientific for tiny or huge ones.
+fn num<T: Real>(x: T) -> String {
+    let a = x.abs().f64();
+    if x.is_finite() && a != 0.0 && !(1e-4..1e7).contains(&a) {
+        if std::mem::size_of::<T>() == 4 {
+            format!("{:e}", x.f64() as f32) // shortest f32 form, not the widened f64 digits
+        } else {
+            format!("{:e}", x.f64())
+        }
+    } else {
+        format!("{x}")
+    }
+}
+
 /// Counts invalid elements and remembers the first of each kind for the message.
 #[derive(Default)]
 struct Invalid {
@@ -60,15 +74,19 @@ impl Invalid {
     fn direction<T: Real>(&mut self, i: usize, name: &str, w: Vec3<T>) {
         self.directions += 1;
         if self.first_direction.is_none() {
-            self.first_direction =
-                Some(format!("element {i}: {name} = [{}, {}, {}]", w.x, w.y, w.z));
+            self.first_direction = Some(format!(
+                "element {i}: {name} = [{}, {}, {}]",
+                num(w.x),
+                num(w.y),
+                num(w.z)
+            ));
         }
     }
     #[cold]
     fn other<T: Real>(&mut self, i: usize, name: &str, v: &[T]) {
         self.others += 1;
         if self.first_other.is_none() {
-            let v: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            let v: Vec<String> = v.iter().map(|&x| num(x)).collect();
             self.first_other = Some(format!("element {i}: {name} = [{}]", v.join(", ")));
         }
     }

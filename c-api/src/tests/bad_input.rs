@@ -84,7 +84,11 @@ fn eval_case(wi: Vec<f32>, wo: Vec<f32>) -> Outcome {
     let message = last_error();
     unsafe { lq_material_free(m) };
     let outputs = match status {
-        LQ_OK | LQ_ERR_INVALID_DIRECTION => {
+        LQ_OK => {
+            assert!(f.iter().all(|&x| x != SENTINEL), "{f:?}");
+            "every element written"
+        }
+        LQ_ERR_INVALID_DIRECTION => {
             // Every element written: invalid ones as 0, valid ones as the core's value.
             assert!(f.iter().all(|&x| x != SENTINEL), "{f:?}");
             "every element written; invalid elements 0"
@@ -583,7 +587,7 @@ fn cases() -> Vec<Case> {
     ));
     v.push(batch_case(
         "lq_eval",
-        "denormal direction (1e-30, 0, 1e-30): its squared length underflows to 0",
+        "tiny direction (1e-30, 0, 1e-30): its squared length underflows to 0 in f32",
         LQ_ERR_INVALID_DIRECTION,
         "zero length",
         || eval_case(vec![1e-30, 0.0, 1e-30], vec![0.0, 0.0, 1.0]),
@@ -910,7 +914,7 @@ fn bad_inputs_give_the_documented_status_and_message() {
             } else {
                 md_escape(&msg)
             },
-            o.outputs
+            md_escape(o.outputs)
         ));
     }
     if std::env::var_os("LACQUER_BLESS_DOCS").is_some() {
