@@ -12,6 +12,12 @@
 #![allow(non_camel_case_types)]
 #![warn(missing_docs)]
 
+// The panic boundary needs unwinding: with panic = "abort" a bug would kill the host.
+#[cfg(panic = "abort")]
+compile_error!(
+    "lacquer-capi must be built with panic = \"unwind\" (its panic boundary relies on it)"
+);
+
 // Declaration order is the header's order.
 mod arrays;
 pub mod batch;

@@ -3,6 +3,7 @@
 
 mod api;
 mod bad_input;
+mod boundary;
 mod header;
 mod threads;
 
