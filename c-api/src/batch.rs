@@ -9,7 +9,7 @@
 use crate::arrays::Batch;
 use crate::material::{lq_material, material};
 use crate::status::{guard, lq_status, Failure};
-use lacquer_core::{Material, Real, Rgb, Vec3};
+use lacquer_core::{Material, Real, Vec3};
 use std::ffi::c_float;
 
 /// `flags` bit: the sample comes from a Dirac delta lobe (`pdf` is then the discrete
@@ -22,28 +22,23 @@ pub const LQ_SAMPLE_FAILED: u32 = 2;
 /// `LQ_ERR_INVALID_ELEMENT`); outputs are 0.
 pub const LQ_SAMPLE_INVALID_INPUT: u32 = 4;
 
-#[inline(always)]
-fn vec3<T: Real>(a: &[T], i: usize) -> Vec3<T> {
-    Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2])
-}
-
-#[inline(always)]
-fn put3<T: Real>(a: &mut [T], i: usize, v: [T; 3]) {
-    a[3 * i] = v[0];
-    a[3 * i + 1] = v[1];
-    a[3 * i + 2] = v[2];
-}
-
-/// The same test the core applies before treating a direction as usable.
+/// The same test the core applies before treating a direction as usable: a finite, non-zero
+/// squared length (NaN fails both comparisons).
 #[inline(always)]
 fn usable<T: Real>(w: Vec3<T>) -> bool {
     let l2 = w.length_squared();
-    l2.is_finite() && l2 > T::zero()
+    l2 > T::zero() && l2 <= T::max_value()
+}
+
+/// `x.is_finite()` as one comparison (NaN fails it).
+#[inline(always)]
+fn finite<T: Real>(x: T) -> bool {
+    x.abs() <= T::max_value()
 }
 
 #[inline(always)]
-fn all_finite<T: Real>(a: &[T], i: usize, per: usize) -> bool {
-    a[per * i..per * (i + 1)].iter().all(|x| x.is_finite())
+fn vec3<T: Real>(a: &[T; 3]) -> Vec3<T> {
+    Vec3::new(a[0], a[1], a[2])
 }
 
 /// A number for a message: plain for ordinary magnitudes, scientific for tiny or huge ones.
@@ -60,9 +55,13 @@ fn num<T: Real>(x: T) -> String {
     }
 }
 
-/// Counts invalid elements and remembers the first of each kind for the message.
+/// Counts invalid elements and remembers the first of each kind for the message. Empty
+/// (`None`) in the common case, so the hot path carries and drops nothing.
 #[derive(Default)]
-struct Invalid {
+struct Invalid(Option<Box<InvalidDetail>>);
+
+#[derive(Default)]
+struct InvalidDetail {
     directions: usize,
     first_direction: Option<String>,
     others: usize,
@@ -71,10 +70,12 @@ struct Invalid {
 
 impl Invalid {
     #[cold]
+    #[inline(never)]
     fn direction<T: Real>(&mut self, i: usize, name: &str, w: Vec3<T>) {
-        self.directions += 1;
-        if self.first_direction.is_none() {
-            self.first_direction = Some(format!(
+        let d = self.0.get_or_insert_with(Box::default);
+        d.directions += 1;
+        if d.first_direction.is_none() {
+            d.first_direction = Some(format!(
                 "element {i}: {name} = [{}, {}, {}]",
                 num(w.x),
                 num(w.y),
@@ -83,18 +84,28 @@ impl Invalid {
         }
     }
     #[cold]
+    #[inline(never)]
     fn other<T: Real>(&mut self, i: usize, name: &str, v: &[T]) {
-        self.others += 1;
-        if self.first_other.is_none() {
+        let d = self.0.get_or_insert_with(Box::default);
+        d.others += 1;
+        if d.first_other.is_none() {
             let v: Vec<String> = v.iter().map(|&x| num(x)).collect();
-            self.first_other = Some(format!("element {i}: {name} = [{}]", v.join(", ")));
+            d.first_other = Some(format!("element {i}: {name} = [{}]", v.join(", ")));
         }
     }
+    #[inline]
     fn finish(self, n: usize) -> Result<(), Failure> {
-        let total = self.directions + self.others;
-        if total == 0 {
-            return Ok(());
+        match self.0 {
+            None => Ok(()),
+            Some(d) => Err(d.failure(n)),
         }
+    }
+}
+
+impl InvalidDetail {
+    #[cold]
+    fn failure(self, n: usize) -> Failure {
+        let total = self.directions + self.others;
         let (status, what, first) = if self.directions > 0 {
             (
                 lq_status::LQ_ERR_INVALID_DIRECTION,
@@ -118,14 +129,14 @@ impl Invalid {
                 self.others
             ));
         }
-        Err(Failure::new(status, msg))
+        Failure::new(status, msg)
     }
 }
 
 /// Optional surface position and footprint of each element (see `lq_eval_spatial`).
 struct Spatial<'a, T> {
-    uv: Option<&'a [T]>,
-    duv: Option<&'a [T]>,
+    uv: Option<&'a [[T; 2]]>,
+    duv: Option<&'a [[T; 4]]>,
 }
 
 impl<T: Real> Spatial<'_, T> {
@@ -133,18 +144,39 @@ impl<T: Real> Spatial<'_, T> {
     #[inline(always)]
     fn check(&self, i: usize, bad: &mut Invalid) -> bool {
         if let Some(uv) = self.uv {
-            if !all_finite(uv, i, 2) {
-                bad.other(i, "uv", &uv[2 * i..2 * i + 2]);
+            if !uv[i].iter().all(|&x| finite(x)) {
+                bad.other(i, "uv", &uv[i]);
                 return false;
             }
         }
         if let Some(duv) = self.duv {
-            if !all_finite(duv, i, 4) {
-                bad.other(i, "duv", &duv[4 * i..4 * i + 4]);
+            if !duv[i].iter().all(|&x| finite(x)) {
+                bad.other(i, "duv", &duv[i]);
                 return false;
             }
         }
         true
+    }
+}
+
+/// True when element `i`'s directions and spatial inputs are valid; otherwise records why
+/// (the element's outputs are then zero).
+#[inline(always)]
+fn valid<T: Real>(
+    i: usize,
+    a: Vec3<T>,
+    o: Vec3<T>,
+    spatial: &Spatial<T>,
+    bad: &mut Invalid,
+) -> bool {
+    if !usable(a) {
+        bad.direction(i, "wi", a);
+        false
+    } else if !usable(o) {
+        bad.direction(i, "wo", o);
+        false
+    } else {
+        spatial.check(i, bad)
     }
 }
 
@@ -158,10 +190,8 @@ unsafe fn eval_pdf_impl<T: Real>(
     wo: *const T,
     uv: *const T,
     duv: *const T,
-    f_rgb: *mut T,
-    pdf: *mut T,
-    want_f: bool,
-    want_pdf: bool,
+    f_rgb: Option<*mut T>,
+    pdf: Option<*mut T>,
 ) -> Result<(), Failure> {
     // SAFETY: handle contract of the exported caller.
     let m: &Material = unsafe { material(m) }?;
@@ -169,24 +199,22 @@ unsafe fn eval_pdf_impl<T: Real>(
         return Ok(());
     }
     let mut b = Batch::new(n);
-    let wi = b.input("wi", wi, 3)?;
-    let wo = b.input("wo", wo, 3)?;
-    let uv = b.optional_input("uv", uv, 2)?;
-    let duv = b.optional_input("duv", duv, 4)?;
+    let wi = b.input::<T, 3>("wi", wi)?;
+    let wo = b.input::<T, 3>("wo", wo)?;
+    let uv = b.optional_input::<T, 2>("uv", uv)?;
+    let duv = b.optional_input::<T, 4>("duv", duv)?;
     if duv.is_some() && uv.is_none() {
         return Err(Failure::invalid(
             "`duv` (footprint) was given without `uv` (position)",
         ));
     }
-    let f_rgb = if want_f {
-        Some(b.output("f_rgb", f_rgb, 3)?)
-    } else {
-        None
+    let f_rgb = match f_rgb {
+        Some(p) => Some(b.output::<T, 3>("f_rgb", p)?),
+        None => None,
     };
-    let pdf = if want_pdf {
-        Some(b.output("pdf", pdf, 1)?)
-    } else {
-        None
+    let pdf = match pdf {
+        Some(p) => Some(b.output::<T, 1>("pdf", p)?),
+        None => None,
     };
     b.check_overlaps()?;
     // SAFETY: every array validated (non-NULL, aligned, sized, outputs disjoint); lengths are
@@ -198,29 +226,43 @@ unsafe fn eval_pdf_impl<T: Real>(
             duv: duv.map(|a| a.slice()),
         }
     };
-    let mut f_rgb = f_rgb.map(|a| unsafe { a.slice() });
-    let mut pdf = pdf.map(|a| unsafe { a.slice() });
+    let f_rgb = f_rgb.map(|a| unsafe { a.slice() });
+    let pdf = pdf.map(|a| unsafe { a.slice() });
 
     let mut bad = Invalid::default();
-    for i in 0..n {
-        let a = vec3(wi, i);
-        let o = vec3(wo, i);
-        let ok = if !usable(a) {
-            bad.direction(i, "wi", a);
-            false
-        } else if !usable(o) {
-            bad.direction(i, "wo", o);
-            false
-        } else {
-            spatial.check(i, &mut bad)
-        };
-        if let Some(f) = f_rgb.as_deref_mut() {
-            let v = if ok { m.eval(a, o) } else { Rgb::zero() };
-            put3(f, i, v.to_array());
+    let pairs = wi.iter().zip(wo).enumerate();
+    match (f_rgb, pdf) {
+        (Some(f), None) => {
+            for ((i, (a, o)), out) in pairs.zip(f) {
+                let (a, o) = (vec3(a), vec3(o));
+                *out = if valid(i, a, o, &spatial, &mut bad) {
+                    m.eval(a, o).to_array()
+                } else {
+                    [T::zero(); 3]
+                };
+            }
         }
-        if let Some(p) = pdf.as_deref_mut() {
-            p[i] = if ok { m.pdf(a, o) } else { T::zero() };
+        (None, Some(p)) => {
+            for ((i, (a, o)), out) in pairs.zip(p) {
+                let (a, o) = (vec3(a), vec3(o));
+                out[0] = if valid(i, a, o, &spatial, &mut bad) {
+                    m.pdf(a, o)
+                } else {
+                    T::zero()
+                };
+            }
         }
+        (Some(f), Some(p)) => {
+            for (((i, (a, o)), f_out), p_out) in pairs.zip(f).zip(p) {
+                let (a, o) = (vec3(a), vec3(o));
+                (*f_out, p_out[0]) = if valid(i, a, o, &spatial, &mut bad) {
+                    (m.eval(a, o).to_array(), m.pdf(a, o))
+                } else {
+                    ([T::zero(); 3], T::zero())
+                };
+            }
+        }
+        (None, None) => {}
     }
     bad.finish(n)
 }
@@ -244,19 +286,19 @@ unsafe fn sample_impl<T: Real>(
         return Ok(());
     }
     let mut b = Batch::new(n);
-    let wo = b.input("wo", wo, 3)?;
-    let u = b.input("u", u, 3)?;
-    let uv = b.optional_input("uv", spatial.0, 2)?;
-    let duv = b.optional_input("duv", spatial.1, 4)?;
+    let wo = b.input::<T, 3>("wo", wo)?;
+    let u = b.input::<T, 3>("u", u)?;
+    let uv = b.optional_input::<T, 2>("uv", spatial.0)?;
+    let duv = b.optional_input::<T, 4>("duv", spatial.1)?;
     if duv.is_some() && uv.is_none() {
         return Err(Failure::invalid(
             "`duv` (footprint) was given without `uv` (position)",
         ));
     }
-    let wi = b.output("wi", wi, 3)?;
-    let weight = b.output("weight_rgb", weight_rgb, 3)?;
-    let pdf = b.output("pdf", pdf, 1)?;
-    let flags = b.optional_output("flags", flags, 1)?;
+    let wi = b.output::<T, 3>("wi", wi)?;
+    let weight = b.output::<T, 3>("weight_rgb", weight_rgb)?;
+    let pdf = b.output::<T, 1>("pdf", pdf)?;
+    let flags = b.optional_output::<u32, 1>("flags", flags)?;
     b.check_overlaps()?;
     // SAFETY: as in eval_pdf_impl.
     let (wo, u) = unsafe { (wo.slice(), u.slice()) };
@@ -271,27 +313,24 @@ unsafe fn sample_impl<T: Real>(
 
     let zero = [T::zero(); 3];
     let mut bad = Invalid::default();
-    for i in 0..n {
-        let o = vec3(wo, i);
+    let outputs = wi.iter_mut().zip(weight.iter_mut()).zip(pdf.iter_mut());
+    for (i, ((o, uu), ((wi_out, w_out), p_out))) in wo.iter().zip(u).zip(outputs).enumerate() {
+        let o = vec3(o);
         let ok = if !usable(o) {
             bad.direction(i, "wo", o);
             false
-        } else if !all_finite(u, i, 3) {
-            bad.other(i, "u", &u[3 * i..3 * i + 3]);
+        } else if !uu.iter().all(|&x| finite(x)) {
+            bad.other(i, "u", uu);
             false
         } else {
             spatial.check(i, &mut bad)
         };
-        let s = if ok {
-            m.sample(o, [u[3 * i], u[3 * i + 1], u[3 * i + 2]])
-        } else {
-            None
-        };
+        let s = if ok { m.sample(o, *uu) } else { None };
         let flag = match &s {
             Some(s) => {
-                put3(wi, i, [s.wi.x, s.wi.y, s.wi.z]);
-                put3(weight, i, s.weight.to_array());
-                pdf[i] = s.pdf;
+                *wi_out = [s.wi.x, s.wi.y, s.wi.z];
+                *w_out = s.weight.to_array();
+                p_out[0] = s.pdf;
                 if s.delta {
                     LQ_SAMPLE_DELTA
                 } else {
@@ -299,9 +338,7 @@ unsafe fn sample_impl<T: Real>(
                 }
             }
             None => {
-                put3(wi, i, zero);
-                put3(weight, i, zero);
-                pdf[i] = T::zero();
+                (*wi_out, *w_out, p_out[0]) = (zero, zero, T::zero());
                 if ok {
                     LQ_SAMPLE_FAILED
                 } else {
@@ -310,7 +347,7 @@ unsafe fn sample_impl<T: Real>(
             }
         };
         if let Some(fl) = flags.as_deref_mut() {
-            fl[i] = flag;
+            fl[i] = [flag];
         }
     }
     bad.finish(n)
@@ -345,20 +382,7 @@ pub unsafe extern "C" fn lq_eval(
     wo: *const c_float,
     f_rgb: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            NO_F32,
-            NO_F32,
-            f_rgb,
-            std::ptr::null_mut(),
-            true,
-            false,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, Some(f_rgb), None) })
 }
 
 /// The solid-angle density (1/sr) with which `lq_sample` picks `wi` given `wo`; `pdf`: n
@@ -375,20 +399,7 @@ pub unsafe extern "C" fn lq_pdf(
     wo: *const c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            NO_F32,
-            NO_F32,
-            std::ptr::null_mut(),
-            pdf,
-            false,
-            true,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, None, Some(pdf)) })
 }
 
 /// `lq_eval` and `lq_pdf` in one pass (what a MIS integrator needs).
@@ -405,7 +416,7 @@ pub unsafe extern "C" fn lq_eval_pdf(
     f_rgb: *mut c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, f_rgb, pdf, true, true) })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, Some(f_rgb), Some(pdf)) })
 }
 
 /// Importance-samples `wi` for each `wo`.
@@ -462,20 +473,7 @@ pub unsafe extern "C" fn lq_eval_f64(
     wo: *const f64,
     f_rgb: *mut f64,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            NO_F64,
-            NO_F64,
-            f_rgb,
-            std::ptr::null_mut(),
-            true,
-            false,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, Some(f_rgb), None) })
 }
 
 /// `lq_pdf` in double precision.
@@ -491,20 +489,7 @@ pub unsafe extern "C" fn lq_pdf_f64(
     wo: *const f64,
     pdf: *mut f64,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            NO_F64,
-            NO_F64,
-            std::ptr::null_mut(),
-            pdf,
-            false,
-            true,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, None, Some(pdf)) })
 }
 
 /// `lq_eval_pdf` in double precision.
@@ -521,7 +506,7 @@ pub unsafe extern "C" fn lq_eval_pdf_f64(
     f_rgb: *mut f64,
     pdf: *mut f64,
 ) -> lq_status {
-    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, f_rgb, pdf, true, true) })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, Some(f_rgb), Some(pdf)) })
 }
 
 /// `lq_sample` in double precision; `flags` (n values, may be NULL) as in
@@ -573,20 +558,7 @@ pub unsafe extern "C" fn lq_eval_spatial(
     duv: *const c_float,
     f_rgb: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            uv,
-            duv,
-            f_rgb,
-            std::ptr::null_mut(),
-            true,
-            false,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, Some(f_rgb), None) })
 }
 
 /// `lq_pdf` with surface position and footprint (see `lq_eval_spatial`).
@@ -604,20 +576,7 @@ pub unsafe extern "C" fn lq_pdf_spatial(
     duv: *const c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe {
-        eval_pdf_impl(
-            m,
-            n,
-            wi,
-            wo,
-            uv,
-            duv,
-            std::ptr::null_mut(),
-            pdf,
-            false,
-            true,
-        )
-    })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, None, Some(pdf)) })
 }
 
 /// `lq_eval_pdf` with surface position and footprint (see `lq_eval_spatial`).
@@ -636,7 +595,7 @@ pub unsafe extern "C" fn lq_eval_pdf_spatial(
     f_rgb: *mut c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, f_rgb, pdf, true, true) })
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, Some(f_rgb), Some(pdf)) })
 }
 
 /// `lq_sample` with surface position and footprint (see `lq_eval_spatial`) and per-element

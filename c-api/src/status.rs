@@ -78,15 +78,19 @@ pub(crate) struct Failure {
 }
 
 impl Failure {
+    #[cold]
     pub(crate) fn new(status: lq_status, message: impl Into<String>) -> Self {
         Self {
             status,
             message: message.into(),
         }
     }
+    #[cold]
+    #[inline(never)]
     pub(crate) fn null(arg: &str) -> Self {
         Self::new(LQ_ERR_NULL, format!("argument `{arg}` is NULL"))
     }
+    #[cold]
     pub(crate) fn invalid(message: impl Into<String>) -> Self {
         Self::new(LQ_ERR_INVALID_ARGUMENT, message)
     }
@@ -105,21 +109,25 @@ impl From<lacquer_core::Error> for Failure {
 }
 
 thread_local! {
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    // Const-initialised: no lazy-initialisation check on the hot path (every call clears it).
+    static LAST_ERROR: RefCell<Option<CString>> = const { RefCell::new(None) };
 }
 
 /// Stores the message `lq_last_error` returns on this thread (interior NULs become spaces).
+#[cold]
 fn set_last_error(message: &str) {
     let c = CString::new(message.replace('\0', " ")).unwrap_or_default();
     // `try_with`: during thread teardown the slot may be gone; losing the message is fine.
-    let _ = LAST_ERROR.try_with(|slot| *slot.borrow_mut() = c);
+    let _ = LAST_ERROR.try_with(|slot| *slot.borrow_mut() = Some(c));
 }
 
-/// Empties the message (a successful call), without allocating when it is already empty.
+/// Empties the message (a successful call); nothing to do when it is already empty.
+#[inline]
 fn clear_last_error() {
     let _ = LAST_ERROR.try_with(|slot| {
-        if !slot.borrow().as_bytes().is_empty() {
-            *slot.borrow_mut() = CString::default();
+        let mut slot = slot.borrow_mut();
+        if slot.is_some() {
+            *slot = None;
         }
     });
 }
@@ -127,7 +135,7 @@ fn clear_last_error() {
 /// Pointer to this thread's message; valid until the next `lq_*` call on this thread.
 pub(crate) fn last_error_ptr() -> *const c_char {
     LAST_ERROR
-        .try_with(|slot| slot.borrow().as_ptr())
+        .try_with(|slot| slot.borrow().as_ref().map_or(c"".as_ptr(), |c| c.as_ptr()))
         .unwrap_or(c"".as_ptr())
 }
 
