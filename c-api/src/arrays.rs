@@ -8,31 +8,33 @@
 
 use crate::status::Failure;
 
-/// Most arrays one call takes (`lq_sample_spatial`: wo, u, uv, duv, wi, weight, pdf, flags).
-const MAX_ARRAYS: usize = 8;
-
-/// The arrays of one batch call of `n` elements. Kept small and allocation-free: this runs
-/// on every call, and renderers call with n = 1.
-pub(crate) struct Batch {
+/// The `N` arrays of one batch call of `n` elements, in a fixed order (a NULL optional array
+/// takes its slot as an empty span). Allocation-free, and with `N` known at compile time the
+/// overlap test unrolls: this runs on every call, and renderers call with n = 1.
+pub(crate) struct Batch<const N: usize> {
     n: usize,
     count: usize,
     /// Bit k set: array k is an output.
     outputs: u32,
-    addr: [usize; MAX_ARRAYS],
-    bytes: [usize; MAX_ARRAYS],
-    names: [&'static str; MAX_ARRAYS],
+    /// Bit k set: array k is not NULL.
+    present: u32,
+    /// Byte range `[start, end)` of each array; empty (0, 0) for a NULL optional array.
+    start: [usize; N],
+    end: [usize; N],
+    names: [&'static str; N],
 }
 
-impl Batch {
+impl<const N: usize> Batch<N> {
     #[inline]
     pub(crate) fn new(n: usize) -> Self {
         Self {
             n,
             count: 0,
             outputs: 0,
-            addr: [0; MAX_ARRAYS],
-            bytes: [0; MAX_ARRAYS],
-            names: [""; MAX_ARRAYS],
+            present: 0,
+            start: [0; N],
+            end: [0; N],
+            names: [""; N],
         }
     }
 
@@ -46,11 +48,15 @@ impl Batch {
         required: bool,
         output: bool,
     ) -> Result<bool, Failure> {
+        let k = self.count;
+        assert!(k < N, "Batch<{N}> takes {N} arrays");
+        self.count = k + 1;
+        self.names[k] = name;
         if ptr.is_null() {
             return if required {
                 Err(Failure::null(name))
             } else {
-                Ok(false)
+                Ok(false) // an empty span: overlaps nothing
             };
         }
         let addr = ptr as usize;
@@ -61,13 +67,10 @@ impl Batch {
             Some(b) if b <= isize::MAX as usize && addr.checked_add(b).is_some() => b,
             _ => return Err(too_large(name, self.n)),
         };
-        let k = self.count;
-        debug_assert!(k < MAX_ARRAYS);
-        self.addr[k] = addr;
-        self.bytes[k] = bytes;
-        self.names[k] = name;
+        self.start[k] = addr;
+        self.end[k] = addr + bytes;
         self.outputs |= u32::from(output) << k;
-        self.count = k + 1;
+        self.present |= 1 << k;
         Ok(true)
     }
 
@@ -118,35 +121,48 @@ impl Batch {
     }
 
     /// Rejects any output that shares bytes with another array (inputs may overlap each
-    /// other: they are only read).
+    /// other: they are only read). Empty spans (NULL optional arrays) overlap nothing.
     #[inline]
     pub(crate) fn check_overlaps(&self) -> Result<(), Failure> {
-        for i in 0..self.count {
-            for j in i + 1..self.count {
-                let involves_output = (self.outputs >> i | self.outputs >> j) & 1 != 0;
-                if involves_output
-                    && self.addr[i] < self.addr[j] + self.bytes[j]
-                    && self.addr[j] < self.addr[i] + self.bytes[i]
-                {
-                    return Err(self.overlap(i, j));
+        debug_assert_eq!(self.count, N);
+        let mut outs = self.outputs;
+        while outs != 0 {
+            let i = outs.trailing_zeros() as usize;
+            outs &= outs - 1;
+            let (a, b) = (self.start[i], self.end[i]);
+            let mut others = self.present & !(1 << i);
+            while others != 0 {
+                let j = others.trailing_zeros() as usize;
+                others &= others - 1;
+                if a < self.end[j] && self.start[j] < b {
+                    return Err(self.overlap());
                 }
             }
         }
         Ok(())
     }
 
+    /// The message for the first overlapping pair (slow path).
     #[cold]
     #[inline(never)]
-    fn overlap(&self, i: usize, j: usize) -> Failure {
-        let (out, other) = if self.outputs >> i & 1 != 0 {
-            (i, j)
-        } else {
-            (j, i)
-        };
-        Failure::invalid(format!(
-            "output array `{}` overlaps array `{}`; outputs must not share memory with any other array",
-            self.names[out], self.names[other]
-        ))
+    fn overlap(&self) -> Failure {
+        for i in 0..N {
+            for j in i + 1..N {
+                let involves_output = (self.outputs >> i | self.outputs >> j) & 1 != 0;
+                if involves_output && self.start[i] < self.end[j] && self.start[j] < self.end[i] {
+                    let (out, other) = if self.outputs >> i & 1 != 0 {
+                        (i, j)
+                    } else {
+                        (j, i)
+                    };
+                    return Failure::invalid(format!(
+                        "output array `{}` overlaps array `{}`; outputs must not share memory with any other array",
+                        self.names[out], self.names[other]
+                    ));
+                }
+            }
+        }
+        Failure::invalid("overlapping arrays")
     }
 }
 
@@ -222,16 +238,25 @@ mod tests {
     fn overlap_rules() {
         let mut buf = [0f32; 12];
         let p = buf.as_mut_ptr();
-        let mut b = Batch::new(2);
+        let mut b = Batch::<2>::new(2);
         b.input::<f32, 3>("wi", p.cast_const()).unwrap();
         b.input::<f32, 3>("wo", p.cast_const()).unwrap(); // inputs may alias
         b.check_overlaps().unwrap();
+
+        let mut b = Batch::<3>::new(2);
+        b.input::<f32, 3>("wi", p.cast_const()).unwrap();
+        b.input::<f32, 3>("wo", p.cast_const()).unwrap();
         b.output::<f32, 3>("f_rgb", unsafe { p.add(5) }).unwrap(); // shares element 5
         let e = b.check_overlaps().unwrap_err();
-        assert!(e.message.contains("f_rgb"), "{}", e.message);
+        assert!(
+            e.message.contains("`f_rgb` overlaps array `wi`"),
+            "{}",
+            e.message
+        );
 
-        let mut b = Batch::new(2);
+        let mut b = Batch::<3>::new(2);
         b.input::<f32, 3>("wi", p.cast_const()).unwrap();
+        b.optional_input::<f32, 2>("uv", std::ptr::null()).unwrap(); // empty span
         b.output::<f32, 3>("f_rgb", unsafe { p.add(6) }).unwrap(); // adjacent, not overlapping
         b.check_overlaps().unwrap();
     }
@@ -240,14 +265,14 @@ mod tests {
     fn alignment_and_size() {
         let buf = [0f32; 8];
         let mis = (buf.as_ptr() as usize + 1) as *const f32;
-        assert!(Batch::new(1).input::<f32, 3>("wi", mis).is_err());
-        assert!(Batch::new(usize::MAX / 4)
+        assert!(Batch::<1>::new(1).input::<f32, 3>("wi", mis).is_err());
+        assert!(Batch::<1>::new(usize::MAX / 4)
             .input::<f32, 3>("wi", buf.as_ptr())
             .is_err());
-        assert!(Batch::new(1)
+        assert!(Batch::<1>::new(1)
             .input::<f32, 3>("wi", std::ptr::null())
             .is_err());
-        assert!(Batch::new(1)
+        assert!(Batch::<1>::new(1)
             .optional_input::<f32, 2>("uv", std::ptr::null())
             .unwrap()
             .is_none());

@@ -198,7 +198,7 @@ unsafe fn eval_pdf_impl<T: Real>(
     if n == 0 {
         return Ok(());
     }
-    let mut b = Batch::new(n);
+    let mut b = Batch::<6>::new(n);
     let wi = b.input::<T, 3>("wi", wi)?;
     let wo = b.input::<T, 3>("wo", wo)?;
     let uv = b.optional_input::<T, 2>("uv", uv)?;
@@ -208,13 +208,14 @@ unsafe fn eval_pdf_impl<T: Real>(
             "`duv` (footprint) was given without `uv` (position)",
         ));
     }
+    // A wanted output is required; an unwanted one takes its slot as an empty span.
     let f_rgb = match f_rgb {
         Some(p) => Some(b.output::<T, 3>("f_rgb", p)?),
-        None => None,
+        None => b.optional_output::<T, 3>("f_rgb", std::ptr::null_mut())?,
     };
     let pdf = match pdf {
         Some(p) => Some(b.output::<T, 1>("pdf", p)?),
-        None => None,
+        None => b.optional_output::<T, 1>("pdf", std::ptr::null_mut())?,
     };
     b.check_overlaps()?;
     // SAFETY: every array validated (non-NULL, aligned, sized, outputs disjoint); lengths are
@@ -285,7 +286,7 @@ unsafe fn sample_impl<T: Real>(
     if n == 0 {
         return Ok(());
     }
-    let mut b = Batch::new(n);
+    let mut b = Batch::<8>::new(n);
     let wo = b.input::<T, 3>("wo", wo)?;
     let u = b.input::<T, 3>("u", u)?;
     let uv = b.optional_input::<T, 2>("uv", spatial.0)?;
