@@ -10,8 +10,12 @@
 //! Run (short, as recorded in docs/c-api.md):
 //!   cargo build --release -p lacquer-capi
 //!   cargo bench -p lacquer-capi --bench overhead -- --warm-up-time 1 --measurement-time 3
+//!
+//! Instruction counts, which a loaded machine does not disturb: `c-api/benches/callgrind.sh`
+//! runs this binary with `LACQUER_OVERHEAD_COUNT=n` under callgrind: each `count_*` function
+//! then runs its variant a fixed number of times (n = 1: 100 000 calls; otherwise one call).
 
-use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{black_box, criterion_group, BenchmarkId, Criterion, Throughput};
 use lacquer_core::rng::Pcg32;
 use lacquer_core::{Material, Vec3};
 use std::ffi::{c_char, c_void};
@@ -88,7 +92,16 @@ fn rust_sample(m: &Material, wo: &[f32], u: &[f32], wi: &mut [f32], w: &mut [f32
     }
 }
 
-fn bench(c: &mut Criterion) {
+/// The C functions, loaded from liblacquer.so.
+struct Abi {
+    _lib: libloading::Library,
+    free: Free,
+    eval: Eval,
+    sample: SampleFn,
+    handle: *mut c_void,
+}
+
+fn load() -> Abi {
     let path = library_path();
     // SAFETY: loading our own library, whose initialisers are Rust std's.
     let lib = unsafe { libloading::Library::new(&path) }.unwrap_or_else(|e| {
@@ -108,6 +121,24 @@ fn bench(c: &mut Criterion) {
     let json = std::ffi::CString::new(JSON).unwrap();
     let mut handle = std::ptr::null_mut();
     assert_eq!(unsafe { from_json(json.as_ptr(), &mut handle) }, 0);
+    Abi {
+        _lib: lib,
+        free,
+        eval,
+        sample,
+        handle,
+    }
+}
+
+impl Drop for Abi {
+    fn drop(&mut self) {
+        unsafe { (self.free)(self.handle) };
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let abi = load();
+    let (eval, sample, handle) = (abi.eval, abi.sample, abi.handle);
     let m = Material::from_json(JSON).unwrap();
 
     for n in [1usize, 1_000_000] {
@@ -177,8 +208,119 @@ fn bench(c: &mut Criterion) {
         });
         g.finish();
     }
-    unsafe { free(handle) };
+}
+
+/// Buffers of one variant: inputs and outputs for `n` elements.
+struct Buffers {
+    wi: Vec<f32>,
+    wo: Vec<f32>,
+    u: Vec<f32>,
+    f: Vec<f32>,
+    swi: Vec<f32>,
+    sw: Vec<f32>,
+    sp: Vec<f32>,
+}
+
+fn buffers(n: usize) -> Buffers {
+    let (wi, wo, u) = inputs(n);
+    Buffers {
+        wi,
+        wo,
+        u,
+        f: vec![0.0; 3 * n],
+        swi: vec![0.0; 3 * n],
+        sw: vec![0.0; 3 * n],
+        sp: vec![0.0; n],
+    }
+}
+
+/// Calls per variant in count mode: elements per call times calls is 10^5 or 10^6.
+fn calls(n: usize) -> usize {
+    if n == 1 {
+        100_000
+    } else {
+        1
+    }
+}
+
+#[inline(never)]
+fn count_rust_eval(m: &Material, b: &mut Buffers, n: usize) {
+    for _ in 0..calls(n) {
+        rust_eval(m, black_box(&b.wi), black_box(&b.wo), black_box(&mut b.f));
+    }
+}
+
+#[inline(never)]
+fn count_capi_eval(abi: &Abi, b: &mut Buffers, n: usize) {
+    for _ in 0..calls(n) {
+        let s = unsafe {
+            (abi.eval)(
+                abi.handle,
+                black_box(n),
+                b.wi.as_ptr(),
+                b.wo.as_ptr(),
+                b.f.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, 0);
+    }
+}
+
+#[inline(never)]
+fn count_rust_sample(m: &Material, b: &mut Buffers, n: usize) {
+    for _ in 0..calls(n) {
+        rust_sample(
+            m,
+            black_box(&b.wo),
+            black_box(&b.u),
+            &mut b.swi,
+            &mut b.sw,
+            &mut b.sp,
+        );
+    }
+}
+
+#[inline(never)]
+fn count_capi_sample(abi: &Abi, b: &mut Buffers, n: usize) {
+    for _ in 0..calls(n) {
+        let s = unsafe {
+            (abi.sample)(
+                abi.handle,
+                black_box(n),
+                b.wo.as_ptr(),
+                b.u.as_ptr(),
+                b.swi.as_mut_ptr(),
+                b.sw.as_mut_ptr(),
+                b.sp.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, 0);
+    }
+}
+
+/// Fixed-count runs of batches of `n` elements for callgrind (see the module comment).
+fn count_mode(n: usize) {
+    let abi = load();
+    let m = Material::from_json(JSON).unwrap();
+    let mut b = buffers(n);
+    count_rust_eval(&m, &mut b, n);
+    count_capi_eval(&abi, &mut b, n);
+    count_rust_sample(&m, &mut b, n);
+    count_capi_sample(&abi, &mut b, n);
+    black_box(&b.f);
+    black_box(&b.sp);
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+
+fn main() {
+    if let Ok(n) = std::env::var("LACQUER_OVERHEAD_COUNT") {
+        count_mode(
+            n.parse()
+                .expect("LACQUER_OVERHEAD_COUNT is the batch size n"),
+        );
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}
