@@ -24,6 +24,16 @@ use std::path::PathBuf;
 type FromJson = unsafe extern "C" fn(*const c_char, *mut *mut c_void) -> i32;
 type Free = unsafe extern "C" fn(*mut c_void);
 type Eval = unsafe extern "C" fn(*const c_void, usize, *const f32, *const f32, *mut f32) -> i32;
+type EvalOne = unsafe extern "C" fn(*const c_void, *const f32, *const f32, *mut f32) -> i32;
+type SampleOne = unsafe extern "C" fn(
+    *const c_void,
+    *const f32,
+    *const f32,
+    *mut f32,
+    *mut f32,
+    *mut f32,
+    *mut u32,
+) -> i32;
 type SampleFn = unsafe extern "C" fn(
     *const c_void,
     usize,
@@ -98,6 +108,8 @@ struct Abi {
     free: Free,
     eval: Eval,
     sample: SampleFn,
+    eval_one: EvalOne,
+    sample_one: SampleOne,
     handle: *mut c_void,
 }
 
@@ -110,12 +122,14 @@ fn load() -> Abi {
             path.display()
         )
     });
-    let (from_json, free, eval, sample) = unsafe {
+    let (from_json, free, eval, sample, eval_one, sample_one) = unsafe {
         (
             *lib.get::<FromJson>(b"lq_material_from_json\0").unwrap(),
             *lib.get::<Free>(b"lq_material_free\0").unwrap(),
             *lib.get::<Eval>(b"lq_eval\0").unwrap(),
             *lib.get::<SampleFn>(b"lq_sample\0").unwrap(),
+            *lib.get::<EvalOne>(b"lq_eval_one\0").unwrap(),
+            *lib.get::<SampleOne>(b"lq_sample_one\0").unwrap(),
         )
     };
     let json = std::ffi::CString::new(JSON).unwrap();
@@ -126,6 +140,8 @@ fn load() -> Abi {
         free,
         eval,
         sample,
+        eval_one,
+        sample_one,
         handle,
     }
 }
@@ -298,6 +314,39 @@ fn count_capi_sample(abi: &Abi, b: &mut Buffers, n: usize) {
     }
 }
 
+#[inline(never)]
+fn count_capi_one_eval(abi: &Abi, b: &mut Buffers) {
+    for _ in 0..calls(1) {
+        let s = unsafe {
+            (abi.eval_one)(
+                abi.handle,
+                black_box(b.wi.as_ptr()),
+                b.wo.as_ptr(),
+                b.f.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, 0);
+    }
+}
+
+#[inline(never)]
+fn count_capi_one_sample(abi: &Abi, b: &mut Buffers) {
+    for _ in 0..calls(1) {
+        let s = unsafe {
+            (abi.sample_one)(
+                abi.handle,
+                black_box(b.wo.as_ptr()),
+                b.u.as_ptr(),
+                b.swi.as_mut_ptr(),
+                b.sw.as_mut_ptr(),
+                b.sp.as_mut_ptr(),
+                std::ptr::null_mut(),
+            )
+        };
+        assert_eq!(s, 0);
+    }
+}
+
 /// Fixed-count runs of batches of `n` elements for callgrind (see the module comment).
 fn count_mode(n: usize) {
     let abi = load();
@@ -307,6 +356,10 @@ fn count_mode(n: usize) {
     count_capi_eval(&abi, &mut b, n);
     count_rust_sample(&m, &mut b, n);
     count_capi_sample(&abi, &mut b, n);
+    if n == 1 {
+        count_capi_one_eval(&abi, &mut b);
+        count_capi_one_sample(&abi, &mut b);
+    }
     black_box(&b.f);
     black_box(&b.sp);
 }

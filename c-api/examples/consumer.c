@@ -70,6 +70,11 @@ int main(void) {
     }
     CHECK(f[9] == 0 && pdf[3] == 0, "below the horizon: f = %g, pdf = %g", f[9], pdf[3]);
 
+    /* One element, the cheap path for scalar renderers; in place is allowed. */
+    float one[3] = {0, 0.6f, 0.8f};
+    s = lq_eval_one(white, one, wo, one);
+    CHECK(s == LQ_OK && fabs(one[0] - 1.0 / pi) < 1e-6, "lq_eval_one: %g", one[0]);
+
     /* Double precision. */
     const double wi64[3] = {0, 0.6, 0.8}, wo64[3] = {0, 0, 1};
     double f64[3];

@@ -424,6 +424,62 @@ lq_status lq_sample_spatial(const lq_material *m,
                             uint32_t *flags);
 
 /**
+ * `lq_eval` for one element: `wi`, `wo` and `f_rgb` point to 3 floats each. Cheaper per
+ * call than `lq_eval` with n = 1 (no batch validation); the arrays may overlap, as inputs
+ * are read before the output is written. Same statuses and per-element policy.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; each non-NULL pointer points to 3 floats, 4-byte aligned.
+ */
+LQ_MUST_USE
+lq_status lq_eval_one(const lq_material *m,
+                      const float *wi,
+                      const float *wo,
+                      float *f_rgb);
+
+/**
+ * `lq_pdf` for one element (`pdf` points to 1 float); see `lq_eval_one`.
+ *
+ * # Safety
+ * As `lq_eval_one`.
+ */
+LQ_MUST_USE
+lq_status lq_pdf_one(const lq_material *m,
+                     const float *wi,
+                     const float *wo,
+                     float *pdf);
+
+/**
+ * `lq_eval_pdf` for one element; see `lq_eval_one`.
+ *
+ * # Safety
+ * As `lq_eval_one`.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_one(const lq_material *m,
+                          const float *wi,
+                          const float *wo,
+                          float *f_rgb,
+                          float *pdf);
+
+/**
+ * `lq_sample_spatial` without uv for one element: `wo`, `u`, `wi`, `weight_rgb` point to 3
+ * floats, `pdf` to 1, `flags` to 1 `uint32_t` or is NULL. Inputs are read before outputs are
+ * written, so the arrays may overlap. Same statuses and per-element policy as `lq_sample`.
+ *
+ * # Safety
+ * As `lq_eval_one`; `flags` is NULL or points to one 4-byte aligned `uint32_t`.
+ */
+LQ_MUST_USE
+lq_status lq_sample_one(const lq_material *m,
+                        const float *wo,
+                        const float *u,
+                        float *wi,
+                        float *weight_rgb,
+                        float *pdf,
+                        uint32_t *flags);
+
+/**
  * Every registered model as a JSON array (what `lacquer models --json` prints): name,
  * summary, reference, claims {reciprocal, energy_conserving, sampled} and params (name,
  * kind, default, min, max, unit, doc). Free the string with `lq_string_free`.

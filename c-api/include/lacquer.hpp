@@ -194,22 +194,23 @@ public:
         return p;
     }
 
-    // --- one element
+    // --- one element (the cheaper lq_*_one functions, for scalar renderers)
 
     std::array<float, 3> eval(const std::array<float, 3> &wi,
                               const std::array<float, 3> &wo) const {
         std::array<float, 3> f{};
-        eval(1, wi.data(), wo.data(), f.data());
+        detail::check(lq_eval_one(get(), wi.data(), wo.data(), f.data()));
         return f;
     }
     float pdf(const std::array<float, 3> &wi, const std::array<float, 3> &wo) const {
         float p = 0.0f;
-        pdf(1, wi.data(), wo.data(), &p);
+        detail::check(lq_pdf_one(get(), wi.data(), wo.data(), &p));
         return p;
     }
     Sample sample(const std::array<float, 3> &wo, const std::array<float, 3> &u) const {
         Sample s;
-        sample(1, wo.data(), u.data(), s.wi.data(), s.weight.data(), &s.pdf, &s.flags);
+        detail::check(lq_sample_one(get(), wo.data(), u.data(), s.wi.data(), s.weight.data(),
+                                    &s.pdf, &s.flags));
         return s;
     }
 

@@ -621,3 +621,199 @@ pub unsafe extern "C" fn lq_sample_spatial(
 ) -> lq_status {
     guard(|| unsafe { sample_impl(m, n, wo, u, (uv, duv), wi, weight_rgb, pdf, flags) })
 }
+
+// ---------------------------------------------------------------------------------------
+// One element: the cheap path for scalar renderers (one shading point per call)
+
+/// Checks one pointer to `K` values of `T` (NULL, alignment) without reading it.
+#[inline(always)]
+fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
+    if p.is_null() {
+        return Err(Failure::null(name));
+    }
+    if (p as usize) % std::mem::align_of::<T>() != 0 {
+        return Err(Failure::invalid(format!(
+            "array `{name}` at {:#x} is not aligned to {} bytes",
+            p as usize,
+            std::mem::align_of::<T>()
+        )));
+    }
+    Ok(())
+}
+
+/// Single-element eval and/or pdf. Inputs are read before outputs are written, through raw
+/// pointers: arrays may overlap (in place is fine), so no overlap check is needed.
+unsafe fn one_eval_pdf(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: Option<*mut c_float>,
+    pdf: Option<*mut c_float>,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract of the exported caller.
+    let m: &Material = unsafe { material(m) }?;
+    check_ptr("wi", wi)?;
+    check_ptr("wo", wo)?;
+    if let Some(f) = f_rgb {
+        check_ptr("f_rgb", f.cast_const())?;
+    }
+    if let Some(p) = pdf {
+        check_ptr("pdf", p.cast_const())?;
+    }
+    // SAFETY: non-NULL and aligned; 3 readable floats each by the caller's contract.
+    let (a, o) = unsafe {
+        (
+            vec3(&wi.cast::<[c_float; 3]>().read()),
+            vec3(&wo.cast::<[c_float; 3]>().read()),
+        )
+    };
+    let mut bad = Invalid::default();
+    let ok = valid(
+        0,
+        a,
+        o,
+        &Spatial {
+            uv: None,
+            duv: None,
+        },
+        &mut bad,
+    );
+    // SAFETY: non-NULL, aligned, writable by the caller's contract; raw writes, no references.
+    if let Some(f) = f_rgb {
+        let v = if ok {
+            m.eval(a, o).to_array()
+        } else {
+            [0.0; 3]
+        };
+        unsafe { f.cast::<[c_float; 3]>().write(v) };
+    }
+    if let Some(p) = pdf {
+        let v = if ok { m.pdf(a, o) } else { 0.0 };
+        unsafe { p.write(v) };
+    }
+    bad.finish(1)
+}
+
+/// `lq_eval` for one element: `wi`, `wo` and `f_rgb` point to 3 floats each. Cheaper per
+/// call than `lq_eval` with n = 1 (no batch validation); the arrays may overlap, as inputs
+/// are read before the output is written. Same statuses and per-element policy.
+///
+/// # Safety
+/// `m` is NULL or a live handle; each non-NULL pointer points to 3 floats, 4-byte aligned.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), None) })
+}
+
+/// `lq_pdf` for one element (`pdf` points to 1 float); see `lq_eval_one`.
+///
+/// # Safety
+/// As `lq_eval_one`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_pdf_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, None, Some(pdf)) })
+}
+
+/// `lq_eval_pdf` for one element; see `lq_eval_one`.
+///
+/// # Safety
+/// As `lq_eval_one`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_pdf_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), Some(pdf)) })
+}
+
+/// `lq_sample_spatial` without uv for one element: `wo`, `u`, `wi`, `weight_rgb` point to 3
+/// floats, `pdf` to 1, `flags` to 1 `uint32_t` or is NULL. Inputs are read before outputs are
+/// written, so the arrays may overlap. Same statuses and per-element policy as `lq_sample`.
+///
+/// # Safety
+/// As `lq_eval_one`; `flags` is NULL or points to one 4-byte aligned `uint32_t`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample_one(
+    m: *const lq_material,
+    wo: *const c_float,
+    u: *const c_float,
+    wi: *mut c_float,
+    weight_rgb: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: handle contract above.
+        let m: &Material = unsafe { material(m) }?;
+        check_ptr("wo", wo)?;
+        check_ptr("u", u)?;
+        check_ptr("wi", wi.cast_const())?;
+        check_ptr("weight_rgb", weight_rgb.cast_const())?;
+        check_ptr("pdf", pdf.cast_const())?;
+        if !flags.is_null() {
+            check_ptr("flags", flags.cast_const())?;
+        }
+        // SAFETY: checked non-NULL and aligned; sizes by the caller's contract.
+        let (o, uu) = unsafe {
+            (
+                vec3(&wo.cast::<[c_float; 3]>().read()),
+                u.cast::<[c_float; 3]>().read(),
+            )
+        };
+        let mut bad = Invalid::default();
+        let ok = if !usable(o) {
+            bad.direction(0, "wo", o);
+            false
+        } else if !uu.iter().all(|&x| finite(x)) {
+            bad.other(0, "u", &uu);
+            false
+        } else {
+            true
+        };
+        let (w, f, p, flag) = match if ok { m.sample(o, uu) } else { None } {
+            Some(s) => (
+                [s.wi.x, s.wi.y, s.wi.z],
+                s.weight.to_array(),
+                s.pdf,
+                if s.delta { LQ_SAMPLE_DELTA } else { 0 },
+            ),
+            None => (
+                [0.0; 3],
+                [0.0; 3],
+                0.0,
+                if ok {
+                    LQ_SAMPLE_FAILED
+                } else {
+                    LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT
+                },
+            ),
+        };
+        // SAFETY: checked non-NULL and aligned; raw writes, so overlapping arrays are fine.
+        unsafe {
+            wi.cast::<[c_float; 3]>().write(w);
+            weight_rgb.cast::<[c_float; 3]>().write(f);
+            pdf.write(p);
+            if !flags.is_null() {
+                flags.write(flag);
+            }
+        }
+        bad.finish(1)
+    })
+}

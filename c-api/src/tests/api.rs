@@ -475,3 +475,170 @@ fn checks_through_the_abi() {
     assert_eq!(r["passed"].as_bool(), Some(passed));
     assert!(passed);
 }
+
+#[test]
+fn one_element_functions_match_the_batch_functions() {
+    let n = 600;
+    let (wi, wo, u) = inputs(n, 21);
+    let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+    for info in models::all() {
+        let m = material(&format!("{{\"model\": \"{}\"}}", info.name));
+        let (mut f, mut p) = (vec![0f32; 3 * n], vec![0f32; n]);
+        let (mut swi, mut sw, mut sp, mut fl) = (
+            vec![0f32; 3 * n],
+            vec![0f32; 3 * n],
+            vec![0f32; n],
+            vec![0u32; n],
+        );
+        unsafe {
+            let s = lq_eval_pdf(
+                m,
+                n,
+                wi.as_ptr(),
+                wo.as_ptr(),
+                f.as_mut_ptr(),
+                p.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+            let s = lq_sample_spatial(
+                m,
+                n,
+                wo.as_ptr(),
+                u.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                swi.as_mut_ptr(),
+                sw.as_mut_ptr(),
+                sp.as_mut_ptr(),
+                fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+        }
+        for i in 0..n {
+            let (a, o, uu) = (
+                &wi[3 * i..3 * i + 3],
+                &wo[3 * i..3 * i + 3],
+                &u[3 * i..3 * i + 3],
+            );
+            let (mut f1, mut f2, mut p1, mut p2) = ([0f32; 3], [0f32; 3], 0f32, 0f32);
+            let (mut w1, mut g1, mut q1, mut fl1) = ([0f32; 3], [0f32; 3], 0f32, 0u32);
+            unsafe {
+                assert_eq!(
+                    lq_eval_one(m, a.as_ptr(), o.as_ptr(), f1.as_mut_ptr()),
+                    LQ_OK
+                );
+                assert_eq!(lq_pdf_one(m, a.as_ptr(), o.as_ptr(), &mut p1), LQ_OK);
+                assert_eq!(
+                    lq_eval_pdf_one(m, a.as_ptr(), o.as_ptr(), f2.as_mut_ptr(), &mut p2),
+                    LQ_OK
+                );
+                let s = lq_sample_one(
+                    m,
+                    o.as_ptr(),
+                    uu.as_ptr(),
+                    w1.as_mut_ptr(),
+                    g1.as_mut_ptr(),
+                    &mut q1,
+                    &mut fl1,
+                );
+                assert_eq!(s, LQ_OK);
+            }
+            assert_eq!(
+                bits(&f1),
+                bits(&f[3 * i..3 * i + 3]),
+                "{} eval {i}",
+                info.name
+            );
+            assert_eq!(bits(&f2), bits(&f[3 * i..3 * i + 3]));
+            assert_eq!(
+                (p1.to_bits(), p2.to_bits()),
+                (p[i].to_bits(), p[i].to_bits())
+            );
+            assert_eq!(
+                bits(&w1),
+                bits(&swi[3 * i..3 * i + 3]),
+                "{} sample {i}",
+                info.name
+            );
+            assert_eq!(bits(&g1), bits(&sw[3 * i..3 * i + 3]));
+            assert_eq!((q1.to_bits(), fl1), (sp[i].to_bits(), fl[i]));
+        }
+        unsafe { lq_material_free(m) };
+    }
+}
+
+#[test]
+fn one_element_functions_work_in_place_and_apply_the_policy() {
+    let m = material(r#"{"model": "lambert", "albedo": 0.5}"#);
+    let pi = std::f32::consts::PI;
+    // In place: the output overwrites the input it was computed from.
+    let mut buf = [0f32, 0.6, 0.8];
+    let wo = [0f32, 0.0, 1.0];
+    let p = buf.as_mut_ptr();
+    assert_eq!(unsafe { lq_eval_one(m, p, wo.as_ptr(), p) }, LQ_OK);
+    assert!((buf[0] - 0.5 / pi).abs() < 1e-7, "{buf:?}");
+    // NaN: zero output and the per-element status.
+    let nan = [f32::NAN, 0.0, 1.0];
+    let mut f = [7f32; 3];
+    assert_eq!(
+        unsafe { lq_eval_one(m, nan.as_ptr(), wo.as_ptr(), f.as_mut_ptr()) },
+        LQ_ERR_INVALID_DIRECTION
+    );
+    assert_eq!(f, [0.0; 3]);
+    assert!(
+        last_error().contains("wi = [NaN, 0, 1]"),
+        "{}",
+        last_error()
+    );
+    // NULL and misaligned: nothing written.
+    let mut f = [7f32; 3];
+    assert_eq!(
+        unsafe { lq_eval_one(m, std::ptr::null(), wo.as_ptr(), f.as_mut_ptr()) },
+        LQ_ERR_NULL
+    );
+    let raw = [0u8; 32];
+    let base = raw.as_ptr() as usize;
+    let odd = (base + (4 - base % 4) + 1) as *const f32; // 1 mod 4: not aligned
+    assert_eq!(
+        unsafe { lq_eval_one(m, odd, wo.as_ptr(), f.as_mut_ptr()) },
+        LQ_ERR_INVALID_ARGUMENT
+    );
+    assert_eq!(f, [7.0; 3]);
+    // Sampling: NaN u, flags optional.
+    let (mut w, mut g, mut q, mut fl) = ([7f32; 3], [7f32; 3], 7f32, 0u32);
+    let s = unsafe {
+        lq_sample_one(
+            m,
+            wo.as_ptr(),
+            [0.5, f32::NAN, 0.5].as_ptr(),
+            w.as_mut_ptr(),
+            g.as_mut_ptr(),
+            &mut q,
+            &mut fl,
+        )
+    };
+    assert_eq!(s, LQ_ERR_INVALID_ELEMENT);
+    assert_eq!(
+        (w, g, q, fl),
+        (
+            [0.0; 3],
+            [0.0; 3],
+            0.0,
+            LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT
+        )
+    );
+    let s = unsafe {
+        lq_sample_one(
+            m,
+            wo.as_ptr(),
+            [0.5, 0.3, 0.6].as_ptr(),
+            w.as_mut_ptr(),
+            g.as_mut_ptr(),
+            &mut q,
+            std::ptr::null_mut(),
+        )
+    };
+    assert_eq!(s, LQ_OK);
+    assert!(q > 0.0 && (g[0] - 0.5).abs() < 1e-6);
+    unsafe { lq_material_free(m) };
+}

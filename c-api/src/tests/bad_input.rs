@@ -711,6 +711,46 @@ fn cases() -> Vec<Case> {
         },
     ));
 
+    v.push(batch_case(
+        "lq_eval_one",
+        "output `f_rgb` = NULL",
+        LQ_ERR_NULL,
+        "`f_rgb` is NULL",
+        || {
+            let m = lambert();
+            let d = [0f32, 0.0, 1.0];
+            let status = unsafe { lq_eval_one(m, d.as_ptr(), d.as_ptr(), null_mut()) };
+            let message = last_error();
+            unsafe { lq_material_free(m) };
+            Outcome {
+                status,
+                message,
+                outputs: "nothing written",
+            }
+        },
+    ));
+    v.push(batch_case(
+        "lq_eval_one",
+        "output `f_rgb` is the input `wi` (in place; allowed for one element)",
+        LQ_OK,
+        "",
+        || {
+            let m = lambert();
+            let mut buf = [0f32, 0.0, 1.0];
+            let wo = [0f32, 0.0, 1.0];
+            let p = buf.as_mut_ptr();
+            let status = unsafe { lq_eval_one(m, p, wo.as_ptr(), p) };
+            let message = last_error();
+            unsafe { lq_material_free(m) };
+            assert!((buf[0] - 0.5 / std::f32::consts::PI).abs() < 1e-7);
+            Outcome {
+                status,
+                message,
+                outputs: "f written over wi (inputs are read first)",
+            }
+        },
+    ));
+
     // --- catalogue, checks, strings
     v.push(batch_case(
         "lq_models_json",
