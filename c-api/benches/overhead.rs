@@ -190,6 +190,18 @@ fn bench(c: &mut Criterion) {
                 )
             });
         });
+        if n == 1 {
+            g.bench_with_input(BenchmarkId::new("c_abi_one", n), &n, |b, _| {
+                b.iter(|| unsafe {
+                    (abi.eval_one)(
+                        handle,
+                        black_box(wi.as_ptr()),
+                        wo.as_ptr(),
+                        black_box(f.as_mut_ptr()),
+                    )
+                });
+            });
+        }
         g.finish();
 
         let mut g = c.benchmark_group("sample_f32");
@@ -222,6 +234,21 @@ fn bench(c: &mut Criterion) {
                 )
             });
         });
+        if n == 1 {
+            g.bench_with_input(BenchmarkId::new("c_abi_one", n), &n, |b, _| {
+                b.iter(|| unsafe {
+                    (abi.sample_one)(
+                        handle,
+                        black_box(wo.as_ptr()),
+                        u.as_ptr(),
+                        swi.as_mut_ptr(),
+                        sw.as_mut_ptr(),
+                        black_box(sp.as_mut_ptr()),
+                        std::ptr::null_mut(),
+                    )
+                });
+            });
+        }
         g.finish();
     }
 }

@@ -12,7 +12,8 @@
  * Arrays. Batch functions take n elements in interleaved arrays: directions and RGB are 3 values
  * per element, u is 3, pdf and flags 1, uv 2, duv 4. float arrays must be 4-byte aligned, double
  * arrays 8-byte aligned. Input arrays may alias each other; an output array must not overlap any
- * other array (LQ_ERR_INVALID_ARGUMENT). The library cannot know an array's length: passing
+ * other array (LQ_ERR_INVALID_ARGUMENT), except in the one-element lq_*_one functions, which
+ * read every input before writing. The library cannot know an array's length: passing
  * fewer than n elements is undefined behaviour, exactly as with memcpy. n == 0 is a no-op that
  * returns LQ_OK (the arrays may then be NULL; the material may not).
  *
