@@ -184,3 +184,28 @@ def test_library_env_override(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == str(copy)
+
+
+def test_incompatible_abi_is_refused_at_import():
+    import subprocess
+    import sys
+
+    # A library whose lq_abi_version() reports ABI 1.0: the import must fail, not misbehave.
+    code = """
+import ctypes
+real_cdll = ctypes.CDLL
+fake_version = ctypes.CFUNCTYPE(ctypes.c_uint32)(lambda: 1 << 16)
+class FakeLib:
+    def __init__(self, path, *a, **k):
+        self._lib = real_cdll(path, *a, **k)
+    def __getattr__(self, name):
+        return fake_version if name == "lq_abi_version" else getattr(self._lib, name)
+ctypes.CDLL = FakeLib
+try:
+    import lacquer
+except ImportError as e:
+    print("refused:", e)
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "refused:" in r.stdout and "ABI 1.0" in r.stdout, r.stdout
