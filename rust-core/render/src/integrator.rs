@@ -39,6 +39,9 @@ pub struct RenderSettings {
     pub rr_depth: u32,
     /// Clamp of each path's contribution (0 = off; a clamp biases the image).
     pub clamp: f32,
+    /// Jitter camera rays over the pixel (box filter); without, every ray goes through the
+    /// pixel centre (analytic tests).
+    pub jitter: bool,
 }
 
 impl Default for RenderSettings {
@@ -53,6 +56,7 @@ impl Default for RenderSettings {
             footprints: true,
             rr_depth: 3,
             clamp: 0.0,
+            jitter: true,
         }
     }
 }
@@ -342,7 +346,7 @@ fn render_pixel(scene: &Scene, set: &RenderSettings, x: u32, y: u32) -> ([f32; 3
     let (mut c, mut a, mut al, mut n) = ([0.0f64; 3], 0.0f64, [0.0f64; 3], [0.0f64; 3]);
     let mut invalid = 0;
     for _ in 0..set.spp {
-        let j = rng.next2();
+        let j = if set.jitter { rng.next2() } else { [0.5, 0.5] };
         let cr = scene.camera.generate(x as f32 + j[0], y as f32 + j[1]);
         let v = trace(scene, set, &cr, &mut rng);
         let mut r = v.radiance;
