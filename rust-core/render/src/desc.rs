@@ -531,7 +531,7 @@ impl DefaultScene {
         }
         if self.floor {
             let floor =
-                b.material(Material::from_json(r#"{"model": "lambert", "albedo": 0.25}"#).map_err(|e| e.to_string())?);
+                b.material(Material::from_json(r#"{"model": "lambert", "albedo": 0.18}"#).map_err(|e| e.to_string())?);
             b.quad(Quad::centered(v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), v3(1.0, 0.0, 0.0), 40.0, 40.0, 1.0), floor);
         }
         let env = match &self.env {

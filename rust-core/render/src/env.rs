@@ -66,7 +66,7 @@ impl Environment {
     /// (top, key side, rim), whose reflections show off glossy coats and flakes.
     #[must_use]
     pub fn studio(scale: f32, rotation_deg: f32) -> Self {
-        Self::from_image(studio_image(512, 256), scale, rotation_deg)
+        Self::from_image(studio_image(256, 128), scale, rotation_deg)
     }
 
     /// Loads a lat-long map from a Radiance `.hdr` or an OpenEXR file.
@@ -234,10 +234,10 @@ pub fn studio_image(width: usize, height: usize) -> HdrImage {
             // Walls: a soft grey gradient, brighter near the horizon, a dark floor.
             let wall = if el >= 0.0 {
                 let t = (el / 90.0).clamp(0.0, 1.0);
-                v3(0.42, 0.44, 0.48) * (1.0 - t) + v3(0.22, 0.24, 0.28) * t
+                v3(0.26, 0.27, 0.30) * (1.0 - t) + v3(0.12, 0.13, 0.15) * t
             } else {
                 let t = (-el / 90.0).clamp(0.0, 1.0);
-                v3(0.16, 0.15, 0.14) * (1.0 - t) + v3(0.06, 0.06, 0.06) * t
+                v3(0.10, 0.095, 0.09) * (1.0 - t) + v3(0.04, 0.04, 0.04) * t
             };
             // Soft boxes: a large overhead panel, a key strip front-left, a rim strip behind right.
             let top = panel(az, el, -60.0, 60.0, 55.0, 85.0, 6.0) * 6.0;
