@@ -219,20 +219,29 @@ fn run_inner(args: &RenderArgs) -> Result<(), String> {
         let presets: Vec<&str> = spec.rows.iter().flat_map(|r| r.1.iter().map(|c| c.0)).collect();
         (img.fb, png, json!({"sheet": spec.name, "title": spec.title, "presets": presets}))
     } else {
-        let (material, label) = material_of(args)?;
-        let scene = match &args.scene {
+        let explicit = args.preset.is_some() || args.material.is_some();
+        let (scene, info) = match &args.scene {
             Some(path) => {
                 let desc = SceneDesc::load(path)?;
                 let base = path.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-                let paint = (args.preset.is_some() || args.material.is_some()).then_some(&material);
-                desc.build(&base, args.width, args.height, paint)?
+                let paint = if explicit { Some(material_of(args)?) } else { None };
+                let scene = desc.build(&base, args.width, args.height, paint.as_ref().map(|m| &m.0))?;
+                let mut info = json!({"scene": path.display().to_string()});
+                if let Some((m, label)) = paint {
+                    info["material"] = json!(label);
+                    info["material_json"] = m.to_json();
+                }
+                (scene, info)
             }
-            None => scene_opts.build(material.clone())?,
+            None => {
+                let (material, label) = material_of(args)?;
+                let info = json!({"material": label, "material_json": material.to_json(), "scene": "built-in"});
+                (scene_opts.build(material)?, info)
+            }
         };
         let fb = render(&scene, &settings, &mut on_progress).map_err(|e| e.to_string())?;
         let png = args.png.as_ref().map(|_| Rgb8Image::from_framebuffer(&fb, args.exposure, tone));
-        let scene_name = args.scene.as_ref().map_or("built-in".to_string(), |p| p.display().to_string());
-        (fb, png, json!({"material": label, "material_json": material.to_json(), "scene": scene_name}))
+        (fb, png, info)
     };
     pb.finish_and_clear();
 

@@ -435,13 +435,24 @@ pub fn render(
     };
     let pool =
         if set.threads > 0 { rayon::ThreadPoolBuilder::new().num_threads(set.threads).build().ok() } else { None };
-    let results = std::thread::scope(|s| {
-        let handle = s.spawn(|| match &pool {
-            Some(p) => p.install(work),
-            None => work(),
+    let finished = AtomicBool::new(false);
+    let caller = std::thread::current();
+    let (results, seconds) = std::thread::scope(|s| {
+        let handle = s.spawn(|| {
+            let r = match &pool {
+                Some(p) => p.install(work),
+                None => work(),
+            };
+            let seconds = start.elapsed().as_secs_f64();
+            finished.store(true, Ordering::Release);
+            caller.unpark();
+            (r, seconds)
         });
-        while !handle.is_finished() {
-            std::thread::sleep(Duration::from_millis(50));
+        while !finished.load(Ordering::Acquire) {
+            std::thread::park_timeout(Duration::from_millis(100));
+            if finished.load(Ordering::Acquire) {
+                break;
+            }
             if !cancel.load(Ordering::Relaxed) && !progress(done.load(Ordering::Relaxed) as f32 / total_rows as f32) {
                 cancel.store(true, Ordering::Relaxed);
             }
@@ -451,7 +462,6 @@ pub fn render(
     if cancel.load(Ordering::Relaxed) {
         return Err(Cancelled);
     }
-    let seconds = start.elapsed().as_secs_f64();
     let mut fb = Framebuffer::new(w, h, set.aovs);
     for (t, px) in tiles.iter().zip(results) {
         let px = px.ok_or(Cancelled)?;
