@@ -20,7 +20,8 @@
 //! ```
 //!
 //! Objects: `sphere` (center, radius), `plane` (center, normal, size `[w, h]`, optional
-//! tangent), `rectangle` (corner, edge_u, edge_v), `mesh` (an OBJ file, with an optional
+//! tangent), `rectangle` (corner, edge_u, edge_v), `mesh` (an OBJ `file`, or inline
+//! `positions` + `triangles` with optional `normals` and `uvs`; with an optional
 //! `transform` `{scale, rotate_deg: [x, y, z], translate}` or `fit_radius`, which centres the
 //! mesh above y = 0 and scales its bounding sphere to that radius). A `material` is the name
 //! of an entry in `materials`, a preset name, or inline material JSON.
@@ -147,10 +148,23 @@ pub enum ObjectDesc {
         #[serde(default = "one")]
         uv_scale: f64,
     },
-    /// A Wavefront OBJ mesh.
+    /// A triangle mesh: a Wavefront OBJ file, or inline arrays (hosts such as Blender).
     Mesh {
-        /// Path (relative to the scene file).
-        file: PathBuf,
+        /// OBJ path (relative to the scene file).
+        #[serde(default)]
+        file: Option<PathBuf>,
+        /// Inline vertex positions (instead of `file`).
+        #[serde(default)]
+        positions: Option<Vec<[f32; 3]>>,
+        /// Inline triangles as vertex indices.
+        #[serde(default)]
+        triangles: Option<Vec<[u32; 3]>>,
+        /// Inline vertex normals (optional).
+        #[serde(default)]
+        normals: Option<Vec<[f32; 3]>>,
+        /// Inline vertex texture coordinates (optional).
+        #[serde(default)]
+        uvs: Option<Vec<[f32; 2]>>,
         /// Material.
         material: Value,
         /// Placement.
@@ -282,6 +296,34 @@ pub fn load_obj(path: &Path) -> Result<Mesh, String> {
     Ok(mesh)
 }
 
+/// Builds a mesh from inline arrays, checking indices and array lengths.
+pub fn inline_mesh(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    normals: Option<&[[f32; 3]]>,
+    uvs: Option<&[[f32; 2]]>,
+) -> Result<Mesh, String> {
+    let n = positions.len();
+    if triangles.is_empty() {
+        return Err("no triangles".into());
+    }
+    if triangles.iter().flatten().any(|&i| i as usize >= n) {
+        return Err(format!("vertex index out of range (there are {n} positions)"));
+    }
+    if normals.is_some_and(|v| v.len() != n) || uvs.is_some_and(|v| v.len() != n) {
+        return Err(format!("normals and uvs need one entry per position ({n})"));
+    }
+    if positions.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("positions must be finite".into());
+    }
+    Ok(Mesh {
+        positions: positions.iter().map(|p| v3(p[0], p[1], p[2])).collect(),
+        normals: normals.map_or(Vec::new(), |v| v.iter().map(|p| v3(p[0], p[1], p[2])).collect()),
+        uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
+        triangles: triangles.to_vec(),
+    })
+}
+
 /// Centres a mesh on the y axis, rests it on y = 0 and scales its bounding sphere to `radius`.
 pub fn fit_mesh(mesh: &mut Mesh, radius: f32) {
     let b = mesh.bounds();
@@ -397,9 +439,15 @@ impl SceneDesc {
                         m,
                     );
                 }
-                ObjectDesc::Mesh { file, material, transform, fit_radius } => {
+                ObjectDesc::Mesh { file, positions, triangles, normals, uvs, material, transform, fit_radius } => {
                     let m = mat(&mut b, material).map_err(ctx)?;
-                    let mut mesh = load_obj(&base.join(file)).map_err(ctx)?;
+                    let mut mesh = match (file, positions, triangles) {
+                        (Some(f), None, None) => load_obj(&base.join(f)).map_err(ctx)?,
+                        (None, Some(p), Some(t)) => {
+                            inline_mesh(p, t, normals.as_deref(), uvs.as_deref()).map_err(ctx)?
+                        }
+                        _ => return Err(ctx("a mesh needs either \"file\" or \"positions\" + \"triangles\"".into())),
+                    };
                     if let Some(r) = fit_radius {
                         fit_mesh(&mut mesh, *r as f32);
                     }

@@ -16,7 +16,9 @@
 //! - Output: OpenEXR (half/float, `R G B A`, `albedo.*`, `N.*`), tone-mapped PNG previews,
 //!   comparison sheets of presets.
 //!
-//! World space is y-up; see [`desc`] for the JSON scene format.
+//! World space is y-up; see [`desc`] for the JSON scene format and [`job`] for a whole render
+//! as one JSON document (what the C ABI and other hosts wrap: job text in, framebuffer out,
+//! a `fn(progress) -> continue` callback on the calling thread).
 //!
 //! ```
 //! use lacquer_render::{desc::DefaultScene, integrator::{render_quiet, RenderSettings}};
@@ -38,6 +40,7 @@ pub mod env;
 pub mod font;
 pub mod geom;
 pub mod integrator;
+pub mod job;
 pub mod lights;
 pub mod output;
 pub mod scene;
@@ -45,4 +48,5 @@ pub mod shapes;
 pub mod sheet;
 
 pub use integrator::{render, render_quiet, Cancelled, Framebuffer, RenderSettings, RenderStats};
+pub use job::{render_job, JobError, RenderJob};
 pub use scene::{Scene, SceneBuilder};
