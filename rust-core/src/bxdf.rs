@@ -90,6 +90,13 @@ pub trait Bxdf {
     fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], _at: &SurfacePoint) -> Option<BsdfSample<T>> {
         self.sample(wo, u)
     }
+
+    /// True when [`Bxdf::eval_at`] can differ from [`Bxdf::eval`] (the checks then also test
+    /// the spatially varying path).
+    #[inline]
+    fn spatially_varying(&self) -> bool {
+        false
+    }
 }
 
 /// What a model claims; `lacquer check` verifies each claim and reports the others.

@@ -28,6 +28,7 @@
 
 pub mod bxdf;
 pub mod check;
+pub mod color;
 pub mod error;
 pub mod frame;
 pub mod fresnel;

@@ -94,6 +94,12 @@ impl Material {
         &self.model
     }
 
+    /// True when [`Material::eval_at`] can differ from [`Material::eval`] (sparkle is on).
+    #[must_use]
+    pub fn spatially_varying(&self) -> bool {
+        self.model.spatially_varying()
+    }
+
     /// Validated parameters, defaults included.
     #[must_use]
     pub fn params(&self) -> &Params {

@@ -140,6 +140,12 @@ fn print_model_report(r: &ModelReport) {
         s.hard_case_failures,
         s.precision_max
     );
+    if s.sparkle_materials > 0 {
+        println!(
+            "    sparkle (eval_at/sample_at) on {} parameter sets: reciprocity {:.2e}",
+            s.sparkle_materials, s.worst_sparkle_reciprocity
+        );
+    }
     for m in &r.materials {
         for v in &m.verdicts {
             if v.status == "fail" {

@@ -5,7 +5,9 @@
 //! expected count is `N (1 − ∫ pdf)`, so a sampler that loses mass the pdf claims is caught.
 
 use super::{direction, CheckConfig};
+use crate::bxdf::{BsdfSample, SurfacePoint};
 use crate::material::Material;
+use crate::math::{Rgb, Vec3};
 use crate::rng::Pcg32;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -74,6 +76,23 @@ fn rel_gap(a: f64, b: f64, floor: f64) -> f64 {
 /// Runs one χ² test per configured outgoing direction.
 #[must_use]
 pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
+    chi2_cases(m, cfg, |wo, u| m.sample(wo, u), |wi, wo| m.eval(wi, wo))
+}
+
+/// The χ² tests of [`Material::sample_at`] at one surface point against [`Material::pdf`]
+/// (the density does not depend on the position); the consistency figure compares the
+/// weights with [`Material::eval_at`].
+#[must_use]
+pub fn chi2_test_at(m: &Material, cfg: &CheckConfig, at: &SurfacePoint) -> Vec<Chi2Case> {
+    chi2_cases(m, cfg, |wo, u| m.sample_at(wo, u, at), |wi, wo| m.eval_at(wi, wo, at))
+}
+
+fn chi2_cases(
+    m: &Material,
+    cfg: &CheckConfig,
+    sample: impl Fn(Vec3<f64>, [f64; 3]) -> Option<BsdfSample<f64>>,
+    eval: impl Fn(Vec3<f64>, Vec3<f64>) -> Rgb<f64>,
+) -> Vec<Chi2Case> {
     let (nt, np) = (cfg.chi2_theta_bins, cfg.chi2_phi_bins);
     let mut rng = Pcg32::new(cfg.seed, 0xc412);
     let mut cases = Vec::new();
@@ -84,7 +103,7 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
         let mut outside = 0.0;
         let mut consistency = 0.0f64;
         for _ in 0..n {
-            let Some(s) = m.sample(wo, rng.uniform3()) else {
+            let Some(s) = sample(wo, rng.uniform3()) else {
                 outside += 1.0;
                 continue;
             };
@@ -94,7 +113,7 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
             }
             let pdf = m.pdf(s.wi, wo);
             consistency = consistency.max(rel_gap(s.pdf, pdf, 1e-12));
-            let f = m.eval(s.wi, wo);
+            let f = eval(s.wi, wo);
             for c in 0..3 {
                 let expect = f[c] * s.wi.z / s.pdf;
                 consistency = consistency.max(rel_gap(s.weight[c], expect, 1e-9));

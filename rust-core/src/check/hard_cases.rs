@@ -139,13 +139,54 @@ fn run_precision<T: Real>(m: &Material, dirs: &[Vec3<f64>], r: &mut HardCaseRepo
     }
 }
 
-/// Runs the direction grid and bad inputs on one material, in f32 and f64.
+/// `eval_at` and `sample_at` of a spatially varying material on degenerate and extreme
+/// surface points (zero, tiny, huge and sheared footprints; huge positions) over a direction
+/// grid that includes the mirror configuration.
+fn run_spatial<T: Real>(m: &Material, r: &mut HardCaseReport, tag: &str) {
+    let mut dirs: Vec<Vec3<f64>> = Vec::new();
+    for &c in &[1.0, 0.9, 0.5, 1e-2, 1e-7, 0.0, -0.5] {
+        for &phi in &[0.0, std::f64::consts::FRAC_PI_2, std::f64::consts::PI] {
+            dirs.push(direction(c, phi));
+        }
+    }
+    for at in super::sparkle::extreme_surface_points() {
+        for &a in &dirs {
+            for &b in &dirs {
+                let f: Rgb<T> = m.eval_at(a.cast(), b.cast(), &at);
+                for c in 0..3 {
+                    r.inspect(f[c].f64(), || format!("{tag} eval_at({a:?}, {b:?}, {at:?})"));
+                }
+            }
+            for u1 in [0.0, 0.5, 1.0 - 1e-7] {
+                for u2 in [0.0, 0.37, 1.0 - 1e-7] {
+                    for u0 in [0.0, 0.3, 0.7, 1.0 - 1e-7] {
+                        let u = [T::of(u0), T::of(u1), T::of(u2)];
+                        if let Some(s) = m.sample_at(a.cast::<T>(), u, &at) {
+                            let what = || format!("{tag} sample_at(wo={a:?}, u=[{u0}, {u1}, {u2}], {at:?})");
+                            for c in 0..3 {
+                                r.inspect(s.weight[c].f64(), what);
+                            }
+                            r.inspect(s.pdf.f64(), what);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Runs the direction grid and bad inputs on one material, in f32 and f64 (and the spatial
+/// path on extreme surface points for a material that sparkles).
 #[must_use]
 pub fn hard_cases(m: &Material) -> HardCaseReport {
     let mut r = HardCaseReport { materials: 1, ..Default::default() };
     let dirs = grid_directions();
     run_precision::<f64>(m, &dirs, &mut r, "f64");
     run_precision::<f32>(m, &dirs, &mut r, "f32");
+    if m.spatially_varying() {
+        run_spatial::<f64>(m, &mut r, "f64");
+        run_spatial::<f32>(m, &mut r, "f32");
+    }
     // Finite but not unit length: normalised by the front end, so results must be finite.
     let good = direction(0.6, 0.3);
     for scale in [1e-3, 7.0, 1e3] {

@@ -1,7 +1,8 @@
 //! Checks that ship with the library: reciprocity, white-furnace energy, χ² goodness of fit
 //! of the sampler against its pdf, pdf normalisation, sample/eval consistency, a hard-case
 //! grid (grazing angles, degenerate half vectors, parameter extremes, bad inputs), and the
-//! f32 fast path against the f64 reference.
+//! f32 fast path against the f64 reference; for models that sparkle, the same on the
+//! spatially varying path (`eval_at`, `sample_at`).
 //!
 //! Each result is compared with what the model *claims* ([`crate::Claims`]): a claim that
 //! fails is a failure; a property the model does not claim is measured and reported, not
@@ -12,13 +13,15 @@ pub mod furnace;
 mod hard_cases;
 mod precision;
 mod reciprocity;
+pub mod sparkle;
 pub mod stats;
 
-pub use chi2::{chi2_test, Chi2Case};
+pub use chi2::{chi2_test, chi2_test_at, Chi2Case};
 pub use furnace::{furnace, FurnaceReport};
 pub use hard_cases::{hard_cases, parameter_extremes, HardCaseReport};
 pub use precision::{precision, PrecisionReport};
 pub use reciprocity::{reciprocity, ReciprocityReport};
+pub use sparkle::{sparkle, SparkleReport};
 
 use crate::bxdf::{Claims, ModelInfo};
 use crate::error::Error;
@@ -150,6 +153,9 @@ pub struct MaterialReport {
     pub hard_cases: HardCaseReport,
     /// f32 against f64.
     pub precision: PrecisionReport,
+    /// The spatially varying path (models that sparkle only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sparkle: Option<SparkleReport>,
     /// Verdicts against the model's claims.
     pub verdicts: Vec<Verdict>,
 }
@@ -196,6 +202,10 @@ pub struct Summary {
     pub hard_case_failures: usize,
     /// Largest f32-vs-f64 relative error.
     pub precision_max: f64,
+    /// Parameter sets whose spatially varying path (sparkle) was checked.
+    pub sparkle_materials: usize,
+    /// Largest relative reciprocity error of `eval_at` on random surface points.
+    pub worst_sparkle_reciprocity: f64,
 }
 
 /// Uniform direction on the upper hemisphere from the check RNG.
@@ -218,6 +228,7 @@ pub fn check_material(m: &Material, cfg: &CheckConfig, origin: &'static str, run
     let chi2 = if run_chi2 && claims.sampled { chi2_test(m, cfg) } else { Vec::new() };
     let hard_cases = hard_cases(m);
     let precision = precision(m, cfg);
+    let sparkle = sparkle(m, cfg);
 
     let mut verdicts = vec![
         Verdict::new(
@@ -253,6 +264,24 @@ pub fn check_material(m: &Material, cfg: &CheckConfig, origin: &'static str, run
             "max f32-vs-f64 relative error of eval and pdf (floor 1e-4 of the peak value)",
         ),
     ];
+    if let Some(s) = &sparkle {
+        verdicts.push(Verdict::new(
+            "sparkle_reciprocity",
+            claims.reciprocal,
+            s.reciprocity_max_relative_error <= cfg.reciprocity_tolerance,
+            s.reciprocity_max_relative_error,
+            cfg.reciprocity_tolerance,
+            "max |f_at(wi,wo) − f_at(wo,wi)| / max(|f|, 1e-10) on random surface points and footprints",
+        ));
+        verdicts.push(Verdict::new(
+            "sparkle_consistency",
+            claims.sampled,
+            s.sample_consistency <= 1e-4,
+            s.sample_consistency,
+            1e-4,
+            "max relative gap between sample_at()'s pdf/weight and pdf()/eval_at()",
+        ));
+    }
     if !chi2.is_empty() {
         let alpha = 1.0 - (1.0 - cfg.significance).powf(1.0 / chi2.len() as f64);
         let min_p = chi2.iter().map(|c| c.p_value).fold(1.0, f64::min);
@@ -283,7 +312,17 @@ pub fn check_material(m: &Material, cfg: &CheckConfig, origin: &'static str, run
             "max relative gap between sample()'s pdf/weight and pdf()/eval()",
         ));
     }
-    MaterialReport { material: m.to_json(), origin, reciprocity, furnace, chi2, hard_cases, precision, verdicts }
+    MaterialReport {
+        material: m.to_json(),
+        origin,
+        reciprocity,
+        furnace,
+        chi2,
+        hard_cases,
+        precision,
+        sparkle,
+        verdicts,
+    }
 }
 
 /// Draws a random valid parameter set (log-uniform for ranges spanning over two decades).
@@ -361,6 +400,10 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
         }
         summary.hard_case_failures += r.hard_cases.failures();
         summary.precision_max = summary.precision_max.max(r.precision.max_relative_error);
+        if let Some(s) = &r.sparkle {
+            summary.sparkle_materials += 1;
+            summary.worst_sparkle_reciprocity = summary.worst_sparkle_reciprocity.max(s.reciprocity_max_relative_error);
+        }
     }
     summary.hard_case_failures += extremes.failures();
     let passed = build_errors.is_empty()
