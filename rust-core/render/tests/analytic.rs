@@ -347,3 +347,86 @@ fn progress_and_cancel() {
     let r = render(&scene, &settings(4096, 8), &mut |_| false);
     assert_eq!(r.err(), Some(Cancelled));
 }
+
+/// An octahedron subdivided `levels` times and pushed onto the unit sphere, as OBJ text
+/// (flat: no vertex normals, so shading normals are the facet normals).
+fn icosphere_obj(levels: usize) -> String {
+    let mut v: Vec<[f64; 3]> =
+        vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
+    let mut f: Vec<[usize; 3]> =
+        vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    for _ in 0..levels {
+        let mut nf = Vec::new();
+        let mut mid = std::collections::HashMap::new();
+        let mut midpoint = |a: usize, b: usize, v: &mut Vec<[f64; 3]>| -> usize {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let m = [0, 1, 2].map(|k| 0.5 * (v[a][k] + v[b][k]));
+                let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+                v.push(m.map(|x| x / l));
+                v.len() - 1
+            })
+        };
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (midpoint(a, b, &mut v), midpoint(b, c, &mut v), midpoint(c, a, &mut v));
+            nf.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        f = nf;
+    }
+    let mut s = String::from("# icosphere\n");
+    for p in &v {
+        s += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for t in &f {
+        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s
+}
+
+/// Meshes: an OBJ polyhedron (512 flat triangles, through the BVH) of lossless Lambert in the
+/// white furnace renders to 1 (it is convex, so the argument of the sphere furnace holds), and
+/// a scene file with that mesh, fitted and transformed, loads and renders.
+#[test]
+fn obj_mesh_furnace_and_scene_file() {
+    let dir = std::env::temp_dir().join(format!("lacquer-render-obj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("ball.obj");
+    std::fs::write(&obj, icosphere_obj(3)).unwrap();
+    let mesh = lacquer_render::desc::load_obj(&obj).unwrap();
+    assert_eq!(mesh.triangles.len(), 512);
+    let mut b = SceneBuilder::new();
+    let m = b.material(Material::preset("white_lambert").unwrap());
+    b.mesh(mesh, m);
+    b.light(Light::Env(Environment::constant(lacquer::Rgb::splat(1.0))));
+    let cam = Camera::look_at(v3(0.0, 0.0, 4.0), v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), 35.0, 24, 24);
+    let scene = b.build(cam);
+    assert_eq!(scene.primitive_count(), 512);
+    let fb = render_quiet(&scene, &settings(64, 16));
+    let (mean, worst, n) = sphere_stats(&fb, 1.0);
+    eprintln!("furnace OBJ mesh: mean {mean:.5}, worst pixel deviation {worst:.4} over {n} pixels");
+    assert!(n > 100 && (mean - 1.0).abs() < 0.005 && worst < 0.15, "mean {mean}, worst {worst}");
+
+    let scene_json = r#"{
+        "camera": {"position": [0, 3, 3], "look_at": [0, 0, 0], "fov_deg": 40},
+        "materials": {"paint": {"preset": "gold_flake_3"}},
+        "objects": [
+            {"type": "mesh", "file": "ball.obj", "material": "paint", "fit_radius": 0.5,
+             "transform": {"rotate_deg": [0, 30, 0], "translate": [0.2, 0, 0]}},
+            {"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [10, 10], "material": {"model": "lambert"}}
+        ],
+        "lights": [{"type": "sun", "direction": [1, 2, 1], "irradiance": 3, "angle_deg": 0.5},
+                   {"type": "environment", "map": "studio"}]
+    }"#;
+    let path = dir.join("scene.json");
+    std::fs::write(&path, scene_json).unwrap();
+    let desc = lacquer_render::desc::SceneDesc::load(&path).unwrap();
+    let scene = desc.build(&dir, 16, 12, None).unwrap();
+    assert_eq!(scene.primitive_count(), 513);
+    let fb = render_quiet(&scene, &settings(4, 4));
+    assert!(fb.color.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(fb.alpha.iter().all(|a| *a == 1.0)); // floor and ball fill the frame
+                                                 // Unknown keys and bad references are errors that say where.
+    let bad = scene_json.replace("\"fit_radius\"", "\"fit_radios\"");
+    std::fs::write(&path, bad).unwrap();
+    assert!(lacquer_render::desc::SceneDesc::load(&path).unwrap_err().contains("fit_radios"));
+    std::fs::remove_dir_all(&dir).ok();
+}
