@@ -174,3 +174,18 @@ def test_errors_name_the_problem(tmp_path):
     proc = run_render(tmp_path, "--sheet", "nope", "-o", "x.exr", expect_ok=False)
     assert proc.returncode != 0 and "thesis-density" in proc.stderr
     assert not (tmp_path / "x.exr").exists()
+
+
+def test_mesh_in_builtin_scene(tmp_path):
+    """--mesh puts an OBJ (here a cube made of quads) in the built-in scene instead of the sphere."""
+    v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    faces = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)]
+    obj = "".join(f"v {x} {y} {z}\n" for x, y, z in v) + "".join("f %d %d %d %d\n" % f for f in faces)
+    (tmp_path / "cube.obj").write_text(obj)
+    run_render(tmp_path, "--preset", "solid_red", "--mesh", "cube.obj", "--no-floor", "--width", 32, "--height", 32,
+               "--spp", 4, "-o", "cube.exr")
+    _, ch = read_exr(tmp_path / "cube.exr")
+    covered = ch["A"] == 1.0
+    assert 50 < covered.sum() < 32 * 32  # the cube fills part of the frame
+    # Solid red paint: red dominates on the cube.
+    assert ch["R"][covered].mean() > ch["G"][covered].mean()
