@@ -25,6 +25,11 @@ cargo test --workspace
 step "lacquer check --all (standard configuration, release build)"
 cargo run --release -q -p lacquer-cli -- check --all
 
+step "lacquer render: EXR read back with OpenImageIO (pytest)"
+cargo build --release -q -p lacquer-cli
+venv="$(bash scripts/python-env.sh)"
+"$venv/bin/python" -m pytest -q tests/test_render_exr.py
+
 for extra in c-api/test.sh; do
   if [ -f "$extra" ]; then
     step "$extra"

@@ -1,10 +1,12 @@
-//! `lacquer`: list models and presets, and run the checks.
+//! `lacquer`: list models and presets, run the checks, render.
 
 use clap::{Args, Parser, Subcommand};
 use lacquer::check::{self, CheckConfig, ModelReport};
 use lacquer::{models, presets, Material};
 use serde_json::{json, Value};
 use std::process::ExitCode;
+
+mod render;
 
 #[derive(Parser)]
 #[command(
@@ -33,6 +35,8 @@ enum Command {
     },
     /// Check models or materials against their claims (reciprocity, energy, χ², hard cases).
     Check(CheckArgs),
+    /// Render a material (path tracer) to OpenEXR: `lacquer render --preset gold_flake_8 -o paint.exr`.
+    Render(Box<render::RenderArgs>),
 }
 
 #[derive(Args)]
@@ -66,6 +70,7 @@ fn main() -> ExitCode {
         Command::Models { json } => list_models(json),
         Command::Presets { json } => list_presets(json),
         Command::Check(args) => run_check(args),
+        Command::Render(args) => render::run(*args),
     }
 }
 

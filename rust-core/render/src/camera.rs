@@ -1,0 +1,121 @@
+//! A pinhole perspective camera with ray differentials (the direction one pixel to the right
+//! and one pixel down), from which hit points get their uv footprint.
+
+use crate::geom::{Ray, V3};
+
+/// A perspective camera.
+#[derive(Clone, Copy, Debug)]
+pub struct Camera {
+    /// Eye position.
+    pub position: V3,
+    forward: V3,
+    right: V3,
+    up: V3,
+    /// tan(vertical fov / 2).
+    tan_half: f32,
+    width: u32,
+    height: u32,
+}
+
+/// A camera ray with its differentials (same origin, neighbouring pixels' directions).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraRay {
+    /// The ray (unit direction).
+    pub ray: Ray,
+    /// Direction through the pixel one to the right.
+    pub dx: V3,
+    /// Direction through the pixel one down.
+    pub dy: V3,
+}
+
+impl Camera {
+    /// A camera at `position` looking at `target` with `up` roughly up and a vertical field
+    /// of view in degrees, for an image of `width × height` pixels.
+    #[must_use]
+    pub fn look_at(position: V3, target: V3, up: V3, vfov_deg: f32, width: u32, height: u32) -> Self {
+        let forward = (target - position).normalize();
+        let mut right = forward.cross(up);
+        if !(right.length_squared() > 1e-12) {
+            right = forward.cross(crate::geom::v3(0.0, 0.0, 1.0));
+        }
+        let right = right.normalize();
+        let up = right.cross(forward);
+        let tan_half = (0.5 * vfov_deg.clamp(0.01, 179.0)).to_radians().tan();
+        Self { position, forward, right, up, tan_half, width: width.max(1), height: height.max(1) }
+    }
+
+    /// Image width in pixels.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Image height in pixels.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The same camera for another image size (same vertical field of view).
+    #[must_use]
+    pub fn with_size(mut self, width: u32, height: u32) -> Self {
+        self.width = width.max(1);
+        self.height = height.max(1);
+        self
+    }
+
+    /// Unnormalised direction through raster position `(x, y)` (pixels, y down).
+    #[inline]
+    fn dir(&self, x: f32, y: f32) -> V3 {
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = (2.0 * x / self.width as f32 - 1.0) * self.tan_half * aspect;
+        let sy = (1.0 - 2.0 * y / self.height as f32) * self.tan_half;
+        self.forward + self.right * sx + self.up * sy
+    }
+
+    /// The ray through raster position `(x, y)`.
+    #[inline]
+    #[must_use]
+    pub fn generate(&self, x: f32, y: f32) -> CameraRay {
+        let d = self.dir(x, y);
+        CameraRay {
+            ray: Ray::new(self.position, d.normalize()),
+            dx: self.dir(x + 1.0, y).normalize(),
+            dy: self.dir(x, y + 1.0).normalize(),
+        }
+    }
+
+    /// Raster position of world point `p`, if in front of the camera.
+    #[must_use]
+    pub fn project(&self, p: V3) -> Option<(f32, f32)> {
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        if !(z > 0.0) {
+            return None;
+        }
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = d.dot(self.right) / z / (self.tan_half * aspect);
+        let sy = d.dot(self.up) / z / self.tan_half;
+        Some(((sx + 1.0) * 0.5 * self.width as f32, (1.0 - sy) * 0.5 * self.height as f32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::v3;
+
+    #[test]
+    fn centre_ray_and_projection() {
+        let c = Camera::look_at(v3(0.0, 0.0, 5.0), v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), 40.0, 200, 100);
+        let r = c.generate(100.0, 50.0);
+        assert!((r.ray.d - v3(0.0, 0.0, -1.0)).length() < 1e-6);
+        let (x, y) = c.project(v3(0.3, -0.2, 1.0)).unwrap();
+        let back = c.generate(x, y).ray;
+        let to_p = (v3(0.3, -0.2, 1.0) - back.o).normalize();
+        assert!((back.d - to_p).length() < 1e-5);
+        // Pixel (0, 0) is top left: pointing up and left.
+        let tl = c.generate(0.0, 0.0).ray.d;
+        assert!(tl.x < 0.0 && tl.y > 0.0);
+    }
+}

@@ -1,0 +1,601 @@
+//! Scene descriptions: the built-in default scene, JSON scene files and OBJ meshes.
+//!
+//! World space is right-handed with **y up** (OBJ's convention); lengths are arbitrary scene
+//! units. A JSON scene file:
+//!
+//! ```json
+//! {
+//!   "camera": {"position": [0, 1.6, 5.5], "look_at": [0, 0.9, 0], "fov_deg": 30},
+//!   "materials": {"paint": {"preset": "gold_flake_8"}, "floor": {"model": "lambert", "albedo": 0.3}},
+//!   "objects": [
+//!     {"type": "sphere", "center": [0, 1, 0], "radius": 1, "material": "paint", "uv_scale": 0.5},
+//!     {"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [40, 40], "material": "floor"},
+//!     {"type": "mesh", "file": "bunny.obj", "material": "paint", "fit_radius": 1}
+//!   ],
+//!   "lights": [
+//!     {"type": "environment", "map": "studio", "scale": 1},
+//!     {"type": "sphere", "center": [-4, 6, 5], "radius": 0.6, "radiance": 150}
+//!   ]
+//! }
+//! ```
+//!
+//! Objects: `sphere` (center, radius), `plane` (center, normal, size `[w, h]`, optional
+//! tangent), `rectangle` (corner, edge_u, edge_v), `mesh` (an OBJ `file`, or inline
+//! `positions` + `triangles` with optional `normals` and `uvs`; with an optional
+//! `transform` `{scale, rotate_deg: [x, y, z], translate}` or `fit_radius`, which centres the
+//! mesh above y = 0 and scales its bounding sphere to that radius). A `material` is the name
+//! of an entry in `materials`, a preset name, or inline material JSON.
+//!
+//! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
+//! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
+//! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
+//! `rectangle` (corner, edge_u, edge_v, radiance, two_sided), `environment` (`map`:
+//! `"studio"`, an `.hdr`/`.exr` lat-long path, or absent for a constant `radiance`; `scale`,
+//! `rotation_deg`). Colours are a number or `[r, g, b]`.
+
+use crate::camera::Camera;
+use crate::env::Environment;
+use crate::geom::{v3, v3a, V3};
+use crate::lights::Light;
+use crate::scene::{Scene, SceneBuilder};
+use crate::shapes::{Mesh, Quad, Sphere};
+use lacquer::{Material, Rgb};
+use serde::Deserialize;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A colour in JSON: a grey or `[r, g, b]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum ColorDesc {
+    /// Grey.
+    Grey(f64),
+    /// RGB.
+    Rgb([f64; 3]),
+}
+
+impl ColorDesc {
+    fn rgb(self) -> Rgb<f32> {
+        match self {
+            ColorDesc::Grey(g) => Rgb::splat(g as f32),
+            ColorDesc::Rgb(c) => Rgb::new(c[0] as f32, c[1] as f32, c[2] as f32),
+        }
+    }
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn one() -> f64 {
+    1.0
+}
+
+/// The camera.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// Eye position.
+    pub position: [f64; 3],
+    /// Point looked at.
+    pub look_at: [f64; 3],
+    /// Up direction.
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+    /// Vertical field of view in degrees.
+    pub fov_deg: f64,
+}
+
+/// Mesh placement.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformDesc {
+    /// Uniform or per-axis scale.
+    #[serde(default)]
+    pub scale: Option<ColorDesc>,
+    /// Rotations about x, then y, then z (degrees).
+    #[serde(default)]
+    pub rotate_deg: Option<[f64; 3]>,
+    /// Translation (applied last).
+    #[serde(default)]
+    pub translate: Option<[f64; 3]>,
+}
+
+/// A scene object.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ObjectDesc {
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: [f64; 3],
+        /// Radius.
+        radius: f64,
+        /// Material name, preset name or inline JSON.
+        material: Value,
+        /// uv units per unit of arc length.
+        #[serde(default = "one")]
+        uv_scale: f64,
+    },
+    /// A finite plane (rectangle) by centre, normal and size.
+    Plane {
+        /// Centre.
+        center: [f64; 3],
+        /// Normal.
+        normal: [f64; 3],
+        /// Width and height.
+        size: [f64; 2],
+        /// Direction of the width (and of the anisotropy axis).
+        #[serde(default)]
+        tangent: Option<[f64; 3]>,
+        /// Material.
+        material: Value,
+        /// uv units per unit of length.
+        #[serde(default = "one")]
+        uv_scale: f64,
+    },
+    /// A parallelogram by corner and edges (front side `edge_u × edge_v`).
+    Rectangle {
+        /// Corner.
+        corner: [f64; 3],
+        /// First edge.
+        edge_u: [f64; 3],
+        /// Second edge.
+        edge_v: [f64; 3],
+        /// Material.
+        material: Value,
+        /// uv units per unit of length.
+        #[serde(default = "one")]
+        uv_scale: f64,
+    },
+    /// A triangle mesh: a Wavefront OBJ file, or inline arrays (hosts such as Blender).
+    Mesh {
+        /// OBJ path (relative to the scene file).
+        #[serde(default)]
+        file: Option<PathBuf>,
+        /// Inline vertex positions (instead of `file`).
+        #[serde(default)]
+        positions: Option<Vec<[f32; 3]>>,
+        /// Inline triangles as vertex indices.
+        #[serde(default)]
+        triangles: Option<Vec<[u32; 3]>>,
+        /// Inline vertex normals (optional).
+        #[serde(default)]
+        normals: Option<Vec<[f32; 3]>>,
+        /// Inline vertex texture coordinates (optional).
+        #[serde(default)]
+        uvs: Option<Vec<[f32; 2]>>,
+        /// Material.
+        material: Value,
+        /// Placement.
+        #[serde(default)]
+        transform: Option<TransformDesc>,
+        /// Centre above y = 0 and scale to this bounding radius (applied before `transform`).
+        #[serde(default)]
+        fit_radius: Option<f64>,
+    },
+}
+
+/// A light.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LightDesc {
+    /// Point light.
+    Point {
+        /// Position.
+        position: [f64; 3],
+        /// Intensity (W/sr).
+        intensity: ColorDesc,
+    },
+    /// Spot light.
+    Spot {
+        /// Position.
+        position: [f64; 3],
+        /// Point on the axis.
+        target: [f64; 3],
+        /// Intensity on the axis (W/sr).
+        intensity: ColorDesc,
+        /// Half angle of the cone (degrees).
+        cone_deg: f64,
+        /// Width of the soft edge inside the cone (degrees).
+        #[serde(default)]
+        blend_deg: f64,
+    },
+    /// Sun (distant light).
+    Sun {
+        /// Direction toward the sun.
+        direction: [f64; 3],
+        /// Irradiance on a surface facing the sun.
+        irradiance: ColorDesc,
+        /// Angular diameter (degrees); 0 = sharp shadows.
+        #[serde(default)]
+        angle_deg: f64,
+    },
+    /// Spherical area light.
+    Sphere {
+        /// Centre.
+        center: [f64; 3],
+        /// Radius.
+        radius: f64,
+        /// Radiance.
+        radiance: ColorDesc,
+    },
+    /// Rectangular area light.
+    Rectangle {
+        /// Corner.
+        corner: [f64; 3],
+        /// First edge.
+        edge_u: [f64; 3],
+        /// Second edge.
+        edge_v: [f64; 3],
+        /// Radiance.
+        radiance: ColorDesc,
+        /// Emit from both sides.
+        #[serde(default)]
+        two_sided: bool,
+    },
+    /// Environment at infinity.
+    Environment {
+        /// `"studio"` or a lat-long `.hdr`/`.exr` path; absent: constant `radiance`.
+        #[serde(default)]
+        map: Option<String>,
+        /// Constant radiance (when no map).
+        #[serde(default)]
+        radiance: Option<ColorDesc>,
+        /// Multiplier.
+        #[serde(default = "one")]
+        scale: f64,
+        /// Rotation about the up axis (degrees).
+        #[serde(default)]
+        rotation_deg: f64,
+    },
+}
+
+/// A whole scene file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDesc {
+    /// Camera.
+    pub camera: CameraDesc,
+    /// Named materials.
+    #[serde(default)]
+    pub materials: BTreeMap<String, Value>,
+    /// Objects.
+    pub objects: Vec<ObjectDesc>,
+    /// Lights.
+    #[serde(default)]
+    pub lights: Vec<LightDesc>,
+}
+
+/// Loads an OBJ file (all its objects merged into one mesh; quads and polygons triangulated).
+pub fn load_obj(path: &Path) -> Result<Mesh, String> {
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut mesh = Mesh::default();
+    let all_normals = models.iter().all(|m| !m.mesh.normals.is_empty());
+    let all_uvs = models.iter().all(|m| !m.mesh.texcoords.is_empty());
+    for m in &models {
+        let base = mesh.positions.len() as u32;
+        let g = &m.mesh;
+        mesh.positions.extend(g.positions.chunks_exact(3).map(|p| v3(p[0], p[1], p[2])));
+        if all_normals {
+            mesh.normals.extend(g.normals.chunks_exact(3).map(|n| v3(n[0], n[1], n[2])));
+        }
+        if all_uvs {
+            mesh.uvs.extend(g.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]));
+        }
+        mesh.triangles.extend(g.indices.chunks_exact(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+    }
+    if mesh.triangles.is_empty() {
+        return Err(format!("{}: no triangles", path.display()));
+    }
+    let n = mesh.positions.len() as u32;
+    if mesh.triangles.iter().flatten().any(|&i| i >= n) {
+        return Err(format!("{}: vertex index out of range", path.display()));
+    }
+    Ok(mesh)
+}
+
+/// Builds a mesh from inline arrays, checking indices and array lengths.
+pub fn inline_mesh(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    normals: Option<&[[f32; 3]]>,
+    uvs: Option<&[[f32; 2]]>,
+) -> Result<Mesh, String> {
+    let n = positions.len();
+    if triangles.is_empty() {
+        return Err("no triangles".into());
+    }
+    if triangles.iter().flatten().any(|&i| i as usize >= n) {
+        return Err(format!("vertex index out of range (there are {n} positions)"));
+    }
+    if normals.is_some_and(|v| v.len() != n) || uvs.is_some_and(|v| v.len() != n) {
+        return Err(format!("normals and uvs need one entry per position ({n})"));
+    }
+    if positions.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("positions must be finite".into());
+    }
+    Ok(Mesh {
+        positions: positions.iter().map(|p| v3(p[0], p[1], p[2])).collect(),
+        normals: normals.map_or(Vec::new(), |v| v.iter().map(|p| v3(p[0], p[1], p[2])).collect()),
+        uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
+        triangles: triangles.to_vec(),
+    })
+}
+
+/// Centres a mesh on the y axis, rests it on y = 0 and scales its bounding sphere to `radius`.
+pub fn fit_mesh(mesh: &mut Mesh, radius: f32) {
+    let b = mesh.bounds();
+    if b.is_empty() {
+        return;
+    }
+    let c = b.center();
+    let half = 0.5 * (b.max - b.min).length();
+    let s = if half > 0.0 { radius / half } else { 1.0 };
+    for p in &mut mesh.positions {
+        *p = v3((p.x - c.x) * s, (p.y - b.min.y) * s, (p.z - c.z) * s);
+    }
+}
+
+/// Applies scale, rotation (x, y, z order) and translation.
+pub fn transform_mesh(mesh: &mut Mesh, t: &TransformDesc) {
+    let s = match t.scale {
+        None => v3(1.0, 1.0, 1.0),
+        Some(ColorDesc::Grey(g)) => v3(g as f32, g as f32, g as f32),
+        Some(ColorDesc::Rgb(c)) => v3a(c),
+    };
+    let r = t.rotate_deg.unwrap_or([0.0; 3]).map(|a| (a as f32).to_radians());
+    let rot = |p: V3| -> V3 {
+        let (sx, cx) = r[0].sin_cos();
+        let p = v3(p.x, cx * p.y - sx * p.z, sx * p.y + cx * p.z);
+        let (sy, cy) = r[1].sin_cos();
+        let p = v3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z);
+        let (sz, cz) = r[2].sin_cos();
+        v3(cz * p.x - sz * p.y, sz * p.x + cz * p.y, p.z)
+    };
+    let tr = v3a(t.translate.unwrap_or([0.0; 3]));
+    for p in &mut mesh.positions {
+        *p = rot(v3(p.x * s.x, p.y * s.y, p.z * s.z)) + tr;
+    }
+    for n in &mut mesh.normals {
+        *n = rot(v3(n.x / s.x, n.y / s.y, n.z / s.z)).normalize();
+    }
+}
+
+/// Resolves a material reference: a name in `named`, a preset name, or inline JSON.
+fn resolve_material(v: &Value, named: &BTreeMap<String, Material>) -> Result<Material, String> {
+    match v {
+        Value::String(s) => {
+            if let Some(m) = named.get(s) {
+                return Ok(m.clone());
+            }
+            Material::preset(s).map_err(|e| format!("material \"{s}\": not in \"materials\" and {e}"))
+        }
+        Value::Object(_) => Material::from_value(v).map_err(|e| e.to_string()),
+        _ => Err("a material is a name, a preset name or a JSON object".into()),
+    }
+}
+
+impl SceneDesc {
+    /// Parses a scene file.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Builds the scene for a `width × height` image. Relative paths resolve against `base`.
+    /// `override_material`, if given, replaces the material named `"paint"`.
+    pub fn build(
+        &self,
+        base: &Path,
+        width: u32,
+        height: u32,
+        override_material: Option<&Material>,
+    ) -> Result<Scene, String> {
+        let mut named = BTreeMap::new();
+        for (k, v) in &self.materials {
+            named.insert(k.clone(), resolve_material(v, &named).map_err(|e| format!("materials.{k}: {e}"))?);
+        }
+        if let Some(m) = override_material {
+            named.insert("paint".to_string(), m.clone());
+        }
+        let mut b = SceneBuilder::new();
+        let mut cache: Vec<(String, u32)> = Vec::new();
+        let mut mat = |b: &mut SceneBuilder, v: &Value| -> Result<u32, String> {
+            let key = v.to_string();
+            if let Some((_, i)) = cache.iter().find(|(k, _)| *k == key) {
+                return Ok(*i);
+            }
+            let i = b.material(resolve_material(v, &named)?);
+            cache.push((key, i));
+            Ok(i)
+        };
+        for (k, o) in self.objects.iter().enumerate() {
+            let ctx = |e: String| format!("objects[{k}]: {e}");
+            match o {
+                ObjectDesc::Sphere { center, radius, material, uv_scale } => {
+                    if !(*radius > 0.0) {
+                        return Err(ctx("radius must be > 0".into()));
+                    }
+                    let m = mat(&mut b, material).map_err(ctx)?;
+                    b.sphere(Sphere { center: v3a(*center), radius: *radius as f32, uv_scale: *uv_scale as f32 }, m);
+                }
+                ObjectDesc::Plane { center, normal, size, tangent, material, uv_scale } => {
+                    let m = mat(&mut b, material).map_err(ctx)?;
+                    let n = v3a(*normal);
+                    let t = tangent.map(v3a).unwrap_or_else(|| lacquer::frame::basis_around(n.normalize()).0);
+                    b.quad(Quad::centered(v3a(*center), n, t, size[0] as f32, size[1] as f32, *uv_scale as f32), m);
+                }
+                ObjectDesc::Rectangle { corner, edge_u, edge_v, material, uv_scale } => {
+                    let m = mat(&mut b, material).map_err(ctx)?;
+                    b.quad(
+                        Quad {
+                            corner: v3a(*corner),
+                            edge_u: v3a(*edge_u),
+                            edge_v: v3a(*edge_v),
+                            uv_scale: *uv_scale as f32,
+                        },
+                        m,
+                    );
+                }
+                ObjectDesc::Mesh { file, positions, triangles, normals, uvs, material, transform, fit_radius } => {
+                    let m = mat(&mut b, material).map_err(ctx)?;
+                    let mut mesh = match (file, positions, triangles) {
+                        (Some(f), None, None) => load_obj(&base.join(f)).map_err(ctx)?,
+                        (None, Some(p), Some(t)) => {
+                            inline_mesh(p, t, normals.as_deref(), uvs.as_deref()).map_err(ctx)?
+                        }
+                        _ => return Err(ctx("a mesh needs either \"file\" or \"positions\" + \"triangles\"".into())),
+                    };
+                    if let Some(r) = fit_radius {
+                        fit_mesh(&mut mesh, *r as f32);
+                    }
+                    if let Some(t) = transform {
+                        transform_mesh(&mut mesh, t);
+                    }
+                    b.mesh(mesh, m);
+                }
+            }
+        }
+        for (k, l) in self.lights.iter().enumerate() {
+            let ctx = |e: String| format!("lights[{k}]: {e}");
+            let light = match l {
+                LightDesc::Point { position, intensity } => {
+                    Light::Point { position: v3a(*position), intensity: intensity.rgb() }
+                }
+                LightDesc::Spot { position, target, intensity, cone_deg, blend_deg } => {
+                    let outer = cone_deg.clamp(0.01, 179.0).to_radians();
+                    let inner = (cone_deg - blend_deg).clamp(0.0, *cone_deg).to_radians();
+                    Light::Spot {
+                        position: v3a(*position),
+                        direction: (v3a(*target) - v3a(*position)).normalize(),
+                        intensity: intensity.rgb(),
+                        cos_inner: (inner as f32).cos(),
+                        cos_outer: (outer as f32).cos(),
+                    }
+                }
+                LightDesc::Sun { direction, irradiance, angle_deg } => {
+                    Light::sun(v3a(*direction), irradiance.rgb(), *angle_deg as f32)
+                }
+                LightDesc::Sphere { center, radius, radiance } => Light::Sphere {
+                    sphere: Sphere { center: v3a(*center), radius: *radius as f32, uv_scale: 1.0 },
+                    radiance: radiance.rgb(),
+                },
+                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided } => Light::Rect {
+                    quad: Quad { corner: v3a(*corner), edge_u: v3a(*edge_u), edge_v: v3a(*edge_v), uv_scale: 1.0 },
+                    radiance: radiance.rgb(),
+                    two_sided: *two_sided,
+                },
+                LightDesc::Environment { map, radiance, scale, rotation_deg } => {
+                    let env = match map.as_deref() {
+                        Some("studio") => Environment::studio(*scale as f32, *rotation_deg as f32),
+                        Some(file) => {
+                            Environment::load(&base.join(file), *scale as f32, *rotation_deg as f32).map_err(ctx)?
+                        }
+                        None => Environment::constant(radiance.unwrap_or(ColorDesc::Grey(1.0)).rgb() * *scale as f32),
+                    };
+                    Light::Env(env)
+                }
+            };
+            b.light(light);
+        }
+        let c = &self.camera;
+        let camera = Camera::look_at(v3a(c.position), v3a(c.look_at), v3a(c.up), c.fov_deg as f32, width, height);
+        Ok(b.build(camera))
+    }
+}
+
+/// The environment of the built-in scene.
+#[derive(Clone, Debug)]
+pub enum EnvChoice {
+    /// The procedural studio.
+    Studio,
+    /// A constant radiance.
+    Uniform(f32),
+    /// A lat-long file.
+    File(PathBuf),
+}
+
+/// Options of the built-in scene.
+#[derive(Clone, Debug)]
+pub struct DefaultScene {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Replaces the sphere (fitted to radius 1, resting on the floor).
+    pub mesh: Option<Mesh>,
+    /// Environment.
+    pub env: EnvChoice,
+    /// Environment multiplier.
+    pub env_scale: f32,
+    /// Environment rotation (degrees).
+    pub env_rotation_deg: f32,
+    /// Add the key light.
+    pub key_light: bool,
+    /// Add the floor.
+    pub floor: bool,
+}
+
+impl Default for DefaultScene {
+    fn default() -> Self {
+        Self {
+            width: 512,
+            height: 512,
+            mesh: None,
+            env: EnvChoice::Studio,
+            env_scale: 1.0,
+            env_rotation_deg: 0.0,
+            key_light: true,
+            floor: true,
+        }
+    }
+}
+
+/// Radius of the default scene's sphere in millimetres: the thesis measured hemispherical
+/// samples; a 100 mm ball. With the paint's default `surface_scale_mm` = 100 mm per uv unit,
+/// the sphere's uv (arc length × uv_scale) is in physical units when uv_scale = r / 100 mm.
+pub const DEFAULT_SPHERE_RADIUS_MM: f32 = 50.0;
+
+impl DefaultScene {
+    /// Builds the scene: the material on a unit sphere (or the mesh) standing on a grey floor,
+    /// under the studio environment and a soft key light from the upper left.
+    pub fn build(&self, material: Material) -> Result<Scene, String> {
+        let mut b = SceneBuilder::new();
+        let paint = b.material(material);
+        match &self.mesh {
+            Some(m) => {
+                let mut m = m.clone();
+                fit_mesh(&mut m, 1.0);
+                b.mesh(m, paint);
+            }
+            None => {
+                b.sphere(
+                    Sphere { center: v3(0.0, 1.0, 0.0), radius: 1.0, uv_scale: DEFAULT_SPHERE_RADIUS_MM / 100.0 },
+                    paint,
+                );
+            }
+        }
+        if self.floor {
+            let floor =
+                b.material(Material::from_json(r#"{"model": "lambert", "albedo": 0.18}"#).map_err(|e| e.to_string())?);
+            b.quad(Quad::centered(v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), v3(1.0, 0.0, 0.0), 40.0, 40.0, 1.0), floor);
+        }
+        let env = match &self.env {
+            EnvChoice::Studio => Environment::studio(self.env_scale, self.env_rotation_deg),
+            EnvChoice::Uniform(l) => Environment::constant(Rgb::splat(*l * self.env_scale)),
+            EnvChoice::File(p) => Environment::load(p, self.env_scale, self.env_rotation_deg)?,
+        };
+        b.light(Light::Env(env));
+        if self.key_light {
+            b.light(Light::Sphere {
+                sphere: Sphere { center: v3(-4.0, 6.0, 5.0), radius: 0.6, uv_scale: 1.0 },
+                radiance: Rgb::new(200.0, 190.0, 175.0),
+            });
+        }
+        let camera =
+            Camera::look_at(v3(0.0, 1.6, 5.5), v3(0.0, 0.9, 0.0), v3(0.0, 1.0, 0.0), 30.0, self.width, self.height);
+        Ok(b.build(camera))
+    }
+}

@@ -1,0 +1,271 @@
+//! A renderable scene: shapes in a BVH, materials, lights with a power-proportional light
+//! selection distribution, and a camera. Build it with [`SceneBuilder`].
+
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::distrib::Distribution1D;
+use crate::geom::{Aabb, Ray, V3};
+use crate::lights::Light;
+use crate::shapes::{Mesh, Quad, Sphere, SurfaceHit};
+use lacquer::Material;
+
+/// What a shape is made of: a material, or an area light's emitter, or both (an emitter
+/// with no material is black apart from its emission).
+#[derive(Clone, Copy, Debug, Default)]
+struct ShapeRef {
+    material: Option<u32>,
+    light: Option<u32>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Prim {
+    Triangle { mesh: u32, tri: u32 },
+    Sphere(u32),
+    Quad(u32),
+}
+
+/// A ray-surface intersection.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// Surface geometry.
+    pub surf: SurfaceHit,
+    /// True when the surface has texture coordinates (uv footprints are meaningful).
+    pub has_uv: bool,
+    /// Material index.
+    pub material: Option<u32>,
+    /// Index of the area light this surface belongs to.
+    pub light: Option<u32>,
+}
+
+/// Collects shapes, materials and lights.
+#[derive(Default)]
+pub struct SceneBuilder {
+    materials: Vec<Material>,
+    meshes: Vec<(Mesh, ShapeRef)>,
+    spheres: Vec<(Sphere, ShapeRef)>,
+    quads: Vec<(Quad, ShapeRef)>,
+    lights: Vec<Light>,
+}
+
+impl SceneBuilder {
+    /// An empty scene.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a material and returns its index.
+    pub fn material(&mut self, m: Material) -> u32 {
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds a triangle mesh made of material `m`.
+    pub fn mesh(&mut self, mesh: Mesh, m: u32) -> &mut Self {
+        self.meshes.push((mesh, ShapeRef { material: Some(m), light: None }));
+        self
+    }
+
+    /// Adds a sphere made of material `m`.
+    pub fn sphere(&mut self, s: Sphere, m: u32) -> &mut Self {
+        self.spheres.push((s, ShapeRef { material: Some(m), light: None }));
+        self
+    }
+
+    /// Adds a rectangle made of material `m`.
+    pub fn quad(&mut self, q: Quad, m: u32) -> &mut Self {
+        self.quads.push((q, ShapeRef { material: Some(m), light: None }));
+        self
+    }
+
+    /// Adds a light; sphere and rectangle lights also become (black, emitting) geometry.
+    pub fn light(&mut self, l: Light) -> &mut Self {
+        let idx = self.lights.len() as u32;
+        match &l {
+            Light::Sphere { sphere, .. } => self.spheres.push((*sphere, ShapeRef { material: None, light: Some(idx) })),
+            Light::Rect { quad, .. } => self.quads.push((*quad, ShapeRef { material: None, light: Some(idx) })),
+            _ => {}
+        }
+        self.lights.push(l);
+        self
+    }
+
+    /// Number of lights added so far.
+    #[must_use]
+    pub fn light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Bounds of all geometry added so far.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::empty();
+        for (m, _) in &self.meshes {
+            b = b.union(m.bounds());
+        }
+        for (s, _) in &self.spheres {
+            b = b.union(s.bounds());
+        }
+        for (q, _) in &self.quads {
+            b = b.union(q.bounds());
+        }
+        b
+    }
+
+    /// Builds the BVH and the light selection distribution.
+    #[must_use]
+    pub fn build(self, camera: Camera) -> Scene {
+        let mut prims = Vec::new();
+        let mut boxes = Vec::new();
+        for (mi, (m, _)) in self.meshes.iter().enumerate() {
+            for t in 0..m.triangles.len() {
+                prims.push(Prim::Triangle { mesh: mi as u32, tri: t as u32 });
+                boxes.push(m.triangle_bounds(t));
+            }
+        }
+        for (si, (s, _)) in self.spheres.iter().enumerate() {
+            prims.push(Prim::Sphere(si as u32));
+            boxes.push(s.bounds());
+        }
+        for (qi, (q, _)) in self.quads.iter().enumerate() {
+            prims.push(Prim::Quad(qi as u32));
+            boxes.push(q.bounds());
+        }
+        let bvh = Bvh::build(&boxes);
+        let bounds = bvh.bounds();
+        let radius = if bounds.is_empty() { 1.0 } else { (0.5 * (bounds.max - bounds.min).length()).max(1e-3) };
+        let powers: Vec<f32> = self.lights.iter().map(|l| l.power(radius)).collect();
+        let light_dist = Distribution1D::new(&powers);
+        let infinite_lights =
+            (0..self.lights.len() as u32).filter(|&i| self.lights[i as usize].is_infinite_area()).collect();
+        let (meshes, mesh_refs) = self.meshes.into_iter().unzip();
+        let (spheres, sphere_refs) = self.spheres.into_iter().unzip();
+        let (quads, quad_refs) = self.quads.into_iter().unzip();
+        Scene {
+            camera,
+            materials: self.materials,
+            meshes,
+            mesh_refs,
+            spheres,
+            sphere_refs,
+            quads,
+            quad_refs,
+            prims,
+            bvh,
+            lights: self.lights,
+            light_dist,
+            infinite_lights,
+            bounds,
+        }
+    }
+}
+
+/// A scene ready to render. Immutable and `Sync`.
+pub struct Scene {
+    /// The camera (its size is the image size).
+    pub camera: Camera,
+    /// Materials, indexed by shapes.
+    pub materials: Vec<Material>,
+    meshes: Vec<Mesh>,
+    mesh_refs: Vec<ShapeRef>,
+    spheres: Vec<Sphere>,
+    sphere_refs: Vec<ShapeRef>,
+    quads: Vec<Quad>,
+    quad_refs: Vec<ShapeRef>,
+    prims: Vec<Prim>,
+    bvh: Bvh,
+    /// Lights.
+    pub lights: Vec<Light>,
+    light_dist: Distribution1D,
+    infinite_lights: Vec<u32>,
+    bounds: Aabb,
+}
+
+impl Scene {
+    /// Bounds of the geometry.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Number of primitives (triangles, spheres, rectangles).
+    #[must_use]
+    pub fn primitive_count(&self) -> usize {
+        self.prims.len()
+    }
+
+    /// Picks a light with probability proportional to its power: `(index, probability)`.
+    #[inline]
+    #[must_use]
+    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let (i, p) = self.light_dist.sample_discrete(u);
+        (p > 0.0).then_some((i, p))
+    }
+
+    /// Probability that [`Scene::pick_light`] picks light `i`.
+    #[inline]
+    #[must_use]
+    pub fn light_probability(&self, i: usize) -> f32 {
+        if self.lights.is_empty() {
+            0.0
+        } else {
+            self.light_dist.probability(i)
+        }
+    }
+
+    /// Lights at infinity that rays leaving the scene can see.
+    #[must_use]
+    pub fn infinite_lights(&self) -> &[u32] {
+        &self.infinite_lights
+    }
+
+    #[inline(always)]
+    fn test(&self, p: u32, ray: &Ray, tmax: f32) -> Option<(f32, f32, f32)> {
+        match self.prims[p as usize] {
+            Prim::Triangle { mesh, tri } => self.meshes[mesh as usize].intersect(tri as usize, ray, tmax),
+            Prim::Sphere(s) => self.spheres[s as usize].intersect(ray, tmax).map(|t| (t, 0.0, 0.0)),
+            Prim::Quad(q) => self.quads[q as usize].intersect(ray, tmax),
+        }
+    }
+
+    /// The nearest intersection along `ray` (within `ray.tmax`).
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut r = *ray;
+        let mut best: Option<(u32, f32, f32)> = None;
+        self.bvh.traverse(&mut r, false, |p, tmax| {
+            let (t, a, b) = self.test(p, ray, tmax)?;
+            best = Some((p, a, b));
+            Some(t)
+        });
+        let (p, a, b) = best?;
+        let t = r.tmax;
+        let (surf, shape, has_uv) = match self.prims[p as usize] {
+            Prim::Triangle { mesh, tri } => {
+                let m = &self.meshes[mesh as usize];
+                (m.surface(tri as usize, a, b), self.mesh_refs[mesh as usize], !m.uvs.is_empty())
+            }
+            Prim::Sphere(s) => (self.spheres[s as usize].surface(ray.at(t)), self.sphere_refs[s as usize], true),
+            Prim::Quad(q) => (self.quads[q as usize].surface(a, b), self.quad_refs[q as usize], true),
+        };
+        Some(Hit { t, surf, has_uv, material: shape.material, light: shape.light })
+    }
+
+    /// True when anything blocks `ray` before `ray.tmax`.
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let mut r = *ray;
+        self.bvh.traverse(&mut r, true, |p, tmax| self.test(p, ray, tmax).map(|h| h.0))
+    }
+
+    /// The point on the image a world point projects to (tests, sheet labels).
+    #[must_use]
+    pub fn project(&self, p: V3) -> Option<(f32, f32)> {
+        self.camera.project(p)
+    }
+}
