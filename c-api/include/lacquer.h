@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 1
+#define LQ_ABI_VERSION_MINOR 2
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -148,6 +148,10 @@ enum lq_status
    * keeps running; output arrays may be partly written. Please report the message.
    */
   LQ_ERR_PANIC = 8,
+  /**
+   * The progress callback of `lq_render` asked to stop; no image was produced.
+   */
+  LQ_ERR_CANCELLED = 9,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -183,11 +187,23 @@ typedef int32_t lq_check_level;
 #endif // __cplusplus
 
 /**
+ * A rendered image. Free it with `lq_image_free`.
+ */
+typedef struct lq_image lq_image;
+
+/**
  * An immutable, validated material. Create it with `lq_material_from_json` or
  * `lq_material_from_preset`, release it with `lq_material_free`. It may be used from any
  * number of threads at once (every function takes it as `const`).
  */
 typedef struct lq_material lq_material;
+
+/**
+ * Progress callback of `lq_render`: called on the thread that called `lq_render` (never on a
+ * worker thread) with the fraction done in [0, 1] and the caller's `user` pointer. Return
+ * `false` to cancel the render.
+ */
+typedef bool (*lq_progress_fn)(float progress, void *user);
 
 #ifdef __cplusplus
 extern "C" {
@@ -572,6 +588,75 @@ void lq_material_free(lq_material *m);
  * `m` is NULL or a live handle; `out_json` is NULL or writable.
  */
 LQ_MUST_USE lq_status lq_material_to_json(const lq_material *m, char **out_json);
+
+/**
+ * Renders a job: a JSON object with `preset` or `material`, an optional inline `scene`
+ * (default: the built-in shader-ball scene), `width`, `height`, `spp`, `max_depth`, `seed`,
+ * `threads`, `aovs`, `sparkle`, ... (docs/render.md lists every key). `progress` may be NULL.
+ *
+ * On success writes a new image to `*out`. Errors: LQ_ERR_NULL, LQ_ERR_INVALID_JSON (not
+ * UTF-8), LQ_ERR_INVALID_ARGUMENT (the job, its material or its scene is invalid; the
+ * message says where), LQ_ERR_CANCELLED (the callback returned false). `*out` is untouched
+ * on error.
+ *
+ * # Safety
+ * `job_json` is NULL or a NUL-terminated string; `progress` is NULL or callable with `user`;
+ * `out` is NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_render(const char *job_json,
+                    lq_progress_fn progress,
+                    void *user,
+                    lq_image **out);
+
+/**
+ * Width in pixels (0 for NULL).
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE uint32_t lq_image_width(const lq_image *img);
+
+/**
+ * Height in pixels (0 for NULL).
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE uint32_t lq_image_height(const lq_image *img);
+
+/**
+ * Linear Rec.709 radiance and coverage: width × height × 4 floats, rows top first. Valid
+ * until `lq_image_free`; NULL for NULL.
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE const float *lq_image_rgba(const lq_image *img);
+
+/**
+ * First-hit albedo (width × height × 3 floats), or NULL when the job had `"aovs": false`.
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE const float *lq_image_albedo(const lq_image *img);
+
+/**
+ * First-hit world-space shading normal (width × height × 3 floats), or NULL without AOVs.
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE const float *lq_image_normal(const lq_image *img);
+
+/**
+ * Releases an image. NULL is a no-op.
+ *
+ * # Safety
+ * `img` is NULL or a live image, freed exactly once.
+ */
+void lq_image_free(lq_image *img);
 
 /**
  * Releases a string returned by this library (`lq_models_json`, `lq_material_to_json`,

@@ -36,12 +36,14 @@ pub enum lq_status {
     /// A bug inside the library was caught at the ABI boundary (a Rust panic). The host
     /// keeps running; output arrays may be partly written. Please report the message.
     LQ_ERR_PANIC = 8,
+    /// The progress callback of `lq_render` asked to stop; no image was produced.
+    LQ_ERR_CANCELLED = 9,
 }
 
 use lq_status::*;
 
 /// Every status, in numeric order (for `lq_status_name` and tests).
-pub(crate) const ALL_STATUSES: [lq_status; 9] = [
+pub(crate) const ALL_STATUSES: [lq_status; 10] = [
     LQ_OK,
     LQ_ERR_NULL,
     LQ_ERR_INVALID_JSON,
@@ -51,6 +53,7 @@ pub(crate) const ALL_STATUSES: [lq_status; 9] = [
     LQ_ERR_INVALID_DIRECTION,
     LQ_ERR_INVALID_ELEMENT,
     LQ_ERR_PANIC,
+    LQ_ERR_CANCELLED,
 ];
 
 impl lq_status {
@@ -66,6 +69,7 @@ impl lq_status {
             LQ_ERR_INVALID_DIRECTION => c"LQ_ERR_INVALID_DIRECTION",
             LQ_ERR_INVALID_ELEMENT => c"LQ_ERR_INVALID_ELEMENT",
             LQ_ERR_PANIC => c"LQ_ERR_PANIC",
+            LQ_ERR_CANCELLED => c"LQ_ERR_CANCELLED",
         }
     }
 }

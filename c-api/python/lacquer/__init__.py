@@ -49,6 +49,8 @@ __all__ = [
     "models",
     "presets",
     "check_model",
+    "render",
+    "CancelledError",
     "abi_version",
     "library_path",
     "LQ_SAMPLE_DELTA",
@@ -104,6 +106,10 @@ class PanicError(LacquerError, RuntimeError):
     """LQ_ERR_PANIC: a bug inside the library, caught at its boundary."""
 
 
+class CancelledError(LacquerError):
+    """LQ_ERR_CANCELLED: the progress callback of :func:`render` returned False."""
+
+
 _ERRORS = {
     _native.LQ_ERR_NULL: NullPointerError,
     _native.LQ_ERR_INVALID_JSON: InvalidJSONError,
@@ -113,6 +119,7 @@ _ERRORS = {
     _native.LQ_ERR_INVALID_DIRECTION: InvalidDirectionError,
     _native.LQ_ERR_INVALID_ELEMENT: InvalidElementError,
     _native.LQ_ERR_PANIC: PanicError,
+    _native.LQ_ERR_CANCELLED: CancelledError,
 }
 
 _PER_ELEMENT = (_native.LQ_ERR_INVALID_DIRECTION, _native.LQ_ERR_INVALID_ELEMENT)
@@ -424,3 +431,40 @@ def check_model(name: str, level: Union[str, int] = "quick") -> CheckResult:
     passed = c_bool(False)
     _check(_native.lib.lq_check_model(name.encode("utf-8"), _level(level), byref(out), byref(passed)))
     return CheckResult(bool(passed.value), _json.loads(_native.take_string(out)))
+
+
+def render(job, progress=None) -> dict:
+    """Renders a job with the reference renderer (docs/render.md lists the keys).
+
+    ``job`` is a dict or a JSON string (``{"preset": "gold_flake_8", "width": 256, ...}``);
+    ``progress(fraction) -> bool`` is called on this thread; returning False cancels
+    (:class:`CancelledError`). Returns ``{"rgba": (h, w, 4) float32, "albedo": (h, w, 3) or
+    None, "normal": (h, w, 3) or None}``, rows top first, linear Rec.709.
+    """
+    text = job if isinstance(job, str) else _json.dumps(job)
+
+    def _trampoline(fraction, _user):
+        try:
+            return bool(progress(float(fraction))) if progress is not None else True
+        except Exception:  # an exception cannot cross C frames: cancel instead
+            return False
+
+    callback = _native.PROGRESS_FN(_trampoline)
+    handle = ctypes.c_void_p()
+    _check(_native.lib.lq_render(text.encode(), callback, None, ctypes.byref(handle)))
+    try:
+        w, h = _native.lib.lq_image_width(handle), _native.lib.lq_image_height(handle)
+
+        def _array(ptr, channels):
+            if not ptr:
+                return None
+            buf = (ctypes.c_float * (w * h * channels)).from_address(ptr)
+            return np.ctypeslib.as_array(buf).reshape(h, w, channels).copy()
+
+        return {
+            "rgba": _array(_native.lib.lq_image_rgba(handle), 4),
+            "albedo": _array(_native.lib.lq_image_albedo(handle), 3),
+            "normal": _array(_native.lib.lq_image_normal(handle), 3),
+        }
+    finally:
+        _native.lib.lq_image_free(handle)

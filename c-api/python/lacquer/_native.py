@@ -12,12 +12,12 @@ import ctypes
 import ctypes.util
 import os
 import sys
-from ctypes import POINTER, c_bool, c_char_p, c_double, c_float, c_int32, c_size_t, c_uint32, c_void_p
+from ctypes import CFUNCTYPE, POINTER, c_bool, c_char_p, c_double, c_float, c_int32, c_size_t, c_uint32, c_void_p
 from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 1
+ABI_MINOR = 2
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -58,6 +58,9 @@ F64 = POINTER(c_double)
 U32 = POINTER(c_uint32)
 _STR_OUT = POINTER(c_void_p)  # char ** (kept as void* so we can free the exact pointer)
 
+# bool (*)(float progress, void *user): return False to cancel a render.
+PROGRESS_FN = CFUNCTYPE(c_bool, c_float, c_void_p)
+
 _SIGNATURES = {
     "lq_abi_version": (c_uint32, []),
     "lq_version": (c_char_p, []),
@@ -88,6 +91,13 @@ _SIGNATURES = {
     "lq_presets_json": (c_int32, [_STR_OUT]),
     "lq_check_material": (c_int32, [c_void_p, c_int32, _STR_OUT, POINTER(c_bool)]),
     "lq_check_model": (c_int32, [c_char_p, c_int32, _STR_OUT, POINTER(c_bool)]),
+    "lq_render": (c_int32, [c_char_p, PROGRESS_FN, c_void_p, POINTER(c_void_p)]),
+    "lq_image_width": (c_uint32, [c_void_p]),
+    "lq_image_height": (c_uint32, [c_void_p]),
+    "lq_image_rgba": (c_void_p, [c_void_p]),
+    "lq_image_albedo": (c_void_p, [c_void_p]),
+    "lq_image_normal": (c_void_p, [c_void_p]),
+    "lq_image_free": (None, [c_void_p]),
 }
 
 for _name, (_restype, _argtypes) in _SIGNATURES.items():
@@ -115,6 +125,7 @@ LQ_ERR_INVALID_ARGUMENT = 5
 LQ_ERR_INVALID_DIRECTION = 6
 LQ_ERR_INVALID_ELEMENT = 7
 LQ_ERR_PANIC = 8
+LQ_ERR_CANCELLED = 9
 
 # Sample flags and check levels.
 LQ_SAMPLE_DELTA = 1

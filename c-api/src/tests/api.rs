@@ -449,3 +449,40 @@ fn one_element_functions_work_in_place_and_apply_the_policy() {
     assert!(q > 0.0 && (g[0] - 0.5).abs() < 1e-6);
     unsafe { lq_material_free(m) };
 }
+
+#[test]
+fn render_produces_an_image_reports_errors_and_cancels() {
+    use crate::render::*;
+    use std::ffi::{c_void, CString};
+    let job = CString::new(r#"{"preset": "white_lambert", "width": 8, "height": 6, "spp": 2}"#).unwrap();
+    let mut img: *mut lq_image = std::ptr::null_mut();
+    unsafe extern "C" fn count(_p: f32, user: *mut c_void) -> bool {
+        unsafe { *(user as *mut u32) += 1 };
+        true
+    }
+    let mut calls = 0u32;
+    unsafe {
+        assert_eq!(lq_render(job.as_ptr(), Some(count), (&mut calls as *mut u32).cast(), &mut img), LQ_OK);
+        assert!(calls > 0);
+        assert_eq!((lq_image_width(img), lq_image_height(img)), (8, 6));
+        let px = std::slice::from_raw_parts(lq_image_rgba(img), 8 * 6 * 4);
+        assert!(px.iter().all(|v| v.is_finite() && *v >= 0.0));
+        assert!(!lq_image_albedo(img).is_null());
+        lq_image_free(img);
+        lq_image_free(std::ptr::null_mut());
+        assert_eq!(lq_image_width(std::ptr::null()), 0);
+    }
+    unsafe extern "C" fn stop(_p: f32, _user: *mut c_void) -> bool {
+        false
+    }
+    let mut img2: *mut lq_image = std::ptr::null_mut();
+    let bad = CString::new(r#"{"preset": "no_such_preset"}"#).unwrap();
+    unsafe {
+        assert_eq!(lq_render(job.as_ptr(), Some(stop), std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_CANCELLED);
+        assert!(img2.is_null());
+        assert_eq!(lq_render(bad.as_ptr(), None, std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_INVALID_ARGUMENT);
+        assert!(img2.is_null());
+        assert_eq!(lq_render(std::ptr::null(), None, std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_NULL);
+        assert_eq!(lq_render(job.as_ptr(), None, std::ptr::null_mut(), std::ptr::null_mut()), lq_status::LQ_ERR_NULL);
+    }
+}
