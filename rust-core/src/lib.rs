@@ -28,6 +28,7 @@
 
 pub mod bxdf;
 pub mod check;
+pub mod energy_compensation;
 pub mod error;
 pub mod frame;
 pub mod fresnel;
@@ -37,6 +38,7 @@ pub mod microfacet;
 pub mod models;
 pub mod params;
 pub mod presets;
+pub mod quadrature;
 pub mod real;
 pub mod rng;
 pub mod sampling;

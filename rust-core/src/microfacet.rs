@@ -33,6 +33,35 @@ pub enum MaskingKind {
     Separable,
     /// `1/(1 + Λ(wi) + Λ(wo))` (Heitz 2014; pbrt-v4's choice).
     HeightCorrelated,
+    /// The V-groove (V-cavity) masking of Torrance-Sparrow / Cook-Torrance, [`g_vgroove`];
+    /// independent of the distribution's shape.
+    VGroove,
+}
+
+impl DistributionKind {
+    /// The JSON name of a distribution (`"beckmann"`, `"ggx"`), as used by choice parameters.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "beckmann" => Some(Self::Beckmann),
+            "ggx" => Some(Self::Ggx),
+            _ => None,
+        }
+    }
+}
+
+impl MaskingKind {
+    /// The JSON name of a masking combination (`"smith_separable"`,
+    /// `"smith_height_correlated"`, `"vgroove"`), as used by choice parameters.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "smith_separable" => Some(Self::Separable),
+            "smith_height_correlated" => Some(Self::HeightCorrelated),
+            "vgroove" => Some(Self::VGroove),
+            _ => None,
+        }
+    }
 }
 
 /// A microfacet distribution with its roughness, instantiated in the working precision.
@@ -132,7 +161,20 @@ impl<T: Real> Microfacet<T> {
             MaskingKind::HeightCorrelated => {
                 T::one() / (T::one() + self.lambda(wi) + self.lambda(wo))
             }
+            MaskingKind::VGroove => g_vgroove(wi, wo, m),
         }
+    }
+
+    /// Smith masking of a direction on either side of the surface (e.g. a refracted direction
+    /// below it): `1/(1 + Λ(w'))` with `w'` mirrored to the upper side, and 0 when `w` sees the
+    /// back of the microfacet (`(w·m)·cos θw ≤ 0`).
+    #[inline]
+    #[must_use]
+    pub fn g1_either_side(&self, w: Vec3<T>, m: Vec3<T>) -> T {
+        if w.dot(m) * cos_theta(w) <= T::zero() {
+            return T::zero();
+        }
+        T::one() / (T::one() + self.lambda(Vec3::new(w.x, w.y, w.z.abs())))
     }
 
     /// Density of visible normals seen from `w`: `G1(w) max(0, w·m) D(m) / cos θw`.
@@ -367,6 +409,31 @@ mod tests {
         let w = spherical_direction(0.6f64, 0.8, 1.1);
         let expect = (-1.0 + (1.0 + 0.09 * (0.36 / 0.64f64)).sqrt()) / 2.0;
         assert!((mf.lambda(w) - expect).abs() < 1e-15);
+    }
+
+    #[test]
+    fn g1_either_side_mirrors_below_the_surface() {
+        let mf = Microfacet::new(DistributionKind::Beckmann, 0.4f64, 0.2);
+        let w = spherical_direction(0.6f64, 0.8, 0.3);
+        let below = Vec3::new(w.x, w.y, -w.z);
+        let m = Vec3::new(0.0, 0.0, 1.0);
+        assert_eq!(mf.g1_either_side(w, m), mf.g1(w, m));
+        // A refracted direction below the surface sees the facet from behind (w·m < 0).
+        assert_eq!(mf.g1_either_side(below, m), mf.g1(w, m));
+        assert_eq!(mf.g1_either_side(below, -m), 0.0);
+    }
+
+    #[test]
+    fn names_parse() {
+        assert_eq!(
+            DistributionKind::from_name("ggx"),
+            Some(DistributionKind::Ggx)
+        );
+        assert_eq!(
+            MaskingKind::from_name("vgroove"),
+            Some(MaskingKind::VGroove)
+        );
+        assert_eq!(MaskingKind::from_name("smith"), None);
     }
 
     #[test]
