@@ -47,6 +47,8 @@ macro_rules! models {
 
 models! {
     Lambert(lambert::Lambert),
+    OrenNayar(oren_nayar::OrenNayar),
+    OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
 }
 
 /// Looks a model up by its JSON name.
