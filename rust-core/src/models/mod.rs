@@ -46,6 +46,8 @@ macro_rules! models {
 }
 
 models! {
+    CookTorrance(cook_torrance::CookTorrance),
+    CookTorrance1981(cook_torrance_1981::CookTorrance1981),
     Lambert(lambert::Lambert),
     OrenNayar(oren_nayar::OrenNayar),
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
