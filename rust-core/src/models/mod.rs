@@ -51,6 +51,7 @@ models! {
     Lambert(lambert::Lambert),
     OrenNayar(oren_nayar::OrenNayar),
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
+    TorranceSparrow(torrance_sparrow::TorranceSparrow),
 }
 
 /// Looks a model up by its JSON name.
