@@ -588,6 +588,49 @@ fn split<T: Real>(x: T, n: usize) -> (usize, T) {
     (i, x - T::of(i as f64))
 }
 
+/// The compensation lobe of one microfacet model: the albedo table and the Fresnel colour
+/// `F_ms` per channel, ready to evaluate `F_ms · f_ms(wi, wo)`.
+#[derive(Clone, Debug)]
+pub struct Compensation {
+    /// `1 − E` for the model's distribution, roughness and masking (shared, cached).
+    pub table: Arc<AlbedoTable>,
+    /// `F_avg² E_avg / (1 − F_avg (1 − E_avg))` per channel.
+    pub f_ms: [f64; 3],
+}
+
+impl Compensation {
+    /// Builds the lobe for a distribution, roughness and masking, with the Fresnel curve
+    /// `fresnel(channel, cos θ)` averaged per channel.
+    #[must_use]
+    pub fn new(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        fresnel: impl Fn(usize, f64) -> f64,
+    ) -> Self {
+        let table = AlbedoTable::cached(kind, masking, alpha_x, alpha_y);
+        let f_ms = std::array::from_fn(|c| {
+            ms_fresnel_factor(fresnel_average(|mu| fresnel(c, mu)), table.e_avg())
+        });
+        Self { table, f_ms }
+    }
+
+    /// `F_ms · f_ms(wi, wo)`.
+    #[inline]
+    #[must_use]
+    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> crate::math::Rgb<T> {
+        crate::math::Rgb::from_array(self.f_ms) * self.table.f_ms(wi, wo)
+    }
+
+    /// The lobe's albedo at `wo`, `F̄_ms (1 − E(wo))` (for lobe selection).
+    #[inline]
+    #[must_use]
+    pub fn albedo<T: Real>(&self, wo: Vec3<T>) -> T {
+        crate::math::Rgb::<T>::from_array(self.f_ms).average() * self.table.loss(wo)
+    }
+}
+
 /// The cosine-weighted average `F_avg = 2 ∫₀¹ F(μ) μ dμ` of a Fresnel curve (64-point
 /// Gauss-Legendre).
 #[must_use]

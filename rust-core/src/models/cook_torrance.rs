@@ -42,7 +42,7 @@
 //! SIGGRAPH 2017 course.
 
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
-use crate::energy_compensation::{fresnel_average, ms_fresnel_factor, AlbedoTable};
+use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector;
 use crate::fresnel::{conductor, conductor_rgb};
@@ -52,7 +52,6 @@ use crate::models::Model;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
-use std::sync::Arc;
 
 const PARAMS: &[ParamSpec] = &[
     ParamSpec::scalar("kd", 0.5, 0.0, 1.0, "", "diffuse weight (kd + ks ≤ 1)"),
@@ -114,12 +113,9 @@ fn build(p: &Params) -> Result<Model, Error> {
     let alpha = p.scalar("alpha");
     let (eta, k) = (p.color("eta"), p.color("k"));
     let ms = p.boolean("multiple_scattering").then(|| {
-        let table = AlbedoTable::cached(distribution, masking, alpha, alpha);
-        let f_ms = std::array::from_fn(|c| {
-            let f_avg = fresnel_average(|mu| conductor(mu, eta[c], k[c]));
-            ms_fresnel_factor(f_avg, table.e_avg())
-        });
-        MultipleScattering { table, f_ms }
+        Compensation::new(distribution, masking, alpha, alpha, |c, mu| {
+            conductor(mu, eta[c], k[c])
+        })
     });
     Ok(Model::CookTorrance(CookTorrance {
         kd,
@@ -132,31 +128,6 @@ fn build(p: &Params) -> Result<Model, Error> {
         k,
         ms,
     }))
-}
-
-/// The Kulla-Conty lobe of a microfacet model: the albedo table and the Fresnel colour.
-#[derive(Clone, Debug)]
-pub struct MultipleScattering {
-    /// `1 − E` for the model's distribution, roughness and masking.
-    pub table: Arc<AlbedoTable>,
-    /// `F_avg² E_avg / (1 − F_avg (1 − E_avg))` per channel.
-    pub f_ms: [f64; 3],
-}
-
-impl MultipleScattering {
-    /// `F_ms · f_ms(wi, wo)`.
-    #[inline]
-    #[must_use]
-    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        Rgb::from_array(self.f_ms) * self.table.f_ms(wi, wo)
-    }
-
-    /// An estimate of the lobe's albedo at `wo` (for lobe selection): `F̄_ms (1 − E(wo))`.
-    #[inline]
-    #[must_use]
-    pub fn albedo<T: Real>(&self, wo: Vec3<T>) -> T {
-        Rgb::<T>::from_array(self.f_ms).average() * self.table.loss(wo)
-    }
 }
 
 /// The normalised Cook-Torrance BRDF.
@@ -179,7 +150,7 @@ pub struct CookTorrance {
     /// Extinction coefficient per channel.
     pub k: [f64; 3],
     /// The compensation lobe, when enabled.
-    pub ms: Option<MultipleScattering>,
+    pub ms: Option<Compensation>,
 }
 
 impl CookTorrance {

@@ -51,6 +51,7 @@ models! {
     Lambert(lambert::Lambert),
     OrenNayar(oren_nayar::OrenNayar),
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
+    RoughConductor(rough_conductor::RoughConductor),
     TorranceSparrow(torrance_sparrow::TorranceSparrow),
 }
 
