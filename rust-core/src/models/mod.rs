@@ -52,6 +52,7 @@ models! {
     OrenNayar(oren_nayar::OrenNayar),
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
     RoughConductor(rough_conductor::RoughConductor),
+    RoughPlastic(rough_plastic::RoughPlastic),
     TorranceSparrow(torrance_sparrow::TorranceSparrow),
 }
 
