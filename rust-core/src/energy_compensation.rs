@@ -448,7 +448,17 @@ pub fn visible_normal_integral(
                             u1 = mid;
                         }
                     }
-                    pieces.push((0.5 * (u0 + u1), false));
+                    let root = 0.5 * (u0 + u1);
+                    pieces.push((root, false));
+                    // Masking often drops to zero in a thin layer at such a kink (a direction
+                    // reaching the horizon): grade geometrically on both sides.
+                    for d in [1e-3, 1e-2, 1e-1] {
+                        for r in [root - d * sigma, root + d * sigma] {
+                            if r > r1 && r < r2 {
+                                pieces.push((r, false));
+                            }
+                        }
+                    }
                 }
             }
         }
