@@ -47,6 +47,13 @@
 //! inverts a CDF numerically). Tables are cached by their exact parameters
 //! ([`AlbedoTable::cached`]), so materials sharing a roughness share one table.
 //!
+//! ## Integrals over visible normals
+//! [`visible_normal_integral`] is the general rule behind [`directional_albedo`]: any
+//! `∫ D_w(m) f(m) dm` over all visible normals or over those whose mirror stays above the
+//! horizon, with kinks given as conics in slope space ([`SlopeConic`]: the mirror's horizon,
+//! the critical angle of total internal reflection) or located numerically. `rough_plastic`
+//! uses it for the transmittance and internal reflectance of its rough interface.
+//!
 //! Reference: C. Kulla and A. Conty, "Revisiting Physically Based Shading at Imageworks",
 //! SIGGRAPH 2017 course *Physically Based Shading in Theory and Practice*.
 
