@@ -29,6 +29,7 @@
 pub mod bxdf;
 pub mod check;
 pub mod color;
+pub mod energy_compensation;
 pub mod error;
 pub mod frame;
 pub mod fresnel;
@@ -39,6 +40,7 @@ pub mod models;
 pub mod paint;
 pub mod params;
 pub mod presets;
+pub mod quadrature;
 pub mod real;
 pub mod rng;
 pub mod sampling;
