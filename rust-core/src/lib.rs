@@ -33,6 +33,7 @@ pub mod frame;
 pub mod fresnel;
 pub mod material;
 pub mod math;
+pub mod measured;
 pub mod microfacet;
 pub mod models;
 pub mod paint;
