@@ -29,6 +29,7 @@
 pub mod bxdf;
 pub mod check;
 pub mod error;
+pub mod fit;
 pub mod frame;
 pub mod fresnel;
 pub mod material;

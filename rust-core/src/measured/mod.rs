@@ -101,7 +101,15 @@ pub fn material_from_table(table: MerlTable) -> Material {
 
 /// Runs `job(i)` for `i in 0..n` on all cores; results in order.
 pub(crate) fn parallel_rows<R: Send>(n: usize, job: impl Fn(usize) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).clamp(1, n.max(1));
+    parallel_rows_with(n, std::thread::available_parallelism().map_or(1, |t| t.get()), job)
+}
+
+/// Runs `job(i)` for `i in 0..n` on up to `threads` threads; results in order.
+pub(crate) fn parallel_rows_with<R: Send>(n: usize, threads: usize, job: impl Fn(usize) -> R + Sync) -> Vec<R> {
+    let threads = threads.clamp(1, n.max(1));
+    if threads == 1 {
+        return (0..n).map(job).collect();
+    }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut parts: Vec<Vec<(usize, R)>> = Vec::new();
     std::thread::scope(|s| {
