@@ -41,11 +41,13 @@ pub struct LmConfig {
     pub lambda0: f64,
     /// Threads used for Jacobian columns.
     pub threads: usize,
+    /// Stop (with [`Stop::Time`]) at the first iteration that starts after this instant.
+    pub deadline: Option<std::time::Instant>,
 }
 
 impl Default for LmConfig {
     fn default() -> Self {
-        Self { max_iterations: 100, ftol: 1e-9, xtol: 1e-9, gtol: 1e-12, lambda0: 1e-3, threads: 1 }
+        Self { max_iterations: 100, ftol: 1e-9, xtol: 1e-9, gtol: 1e-12, lambda0: 1e-3, threads: 1, deadline: None }
     }
 }
 
@@ -65,6 +67,8 @@ pub enum Stop {
     Stalled,
     /// The starting point could not be evaluated.
     BadStart,
+    /// The deadline passed.
+    Time,
 }
 
 /// Outcome of a minimisation.
@@ -185,6 +189,9 @@ pub fn minimize<P: Problem>(p: &P, x0: &[f64], lo: &[f64], hi: &[f64], cfg: &LmC
     let stop = loop {
         if iterations >= cfg.max_iterations {
             break Stop::Iterations;
+        }
+        if cfg.deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            break Stop::Time;
         }
         iterations += 1;
         if need_jacobian {

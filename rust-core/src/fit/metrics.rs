@@ -2,21 +2,27 @@
 //! goodness-of-fit figures reported for a fit.
 //!
 //! - **Thesis error** (section 4.4.2): `E(p) = sqrt(Σ [(M − K(p)) cos θv]²)` over the table's
-//!   entries and channels, `M` measured, `K` the model, `θv` the viewing (outgoing) angle. The
-//!   fit minimises this. A MERL entry stands for an unordered pair (the table is reciprocal),
-//!   so there the weight is the geometric mean of the two orderings' weights,
-//!   `sqrt(cos θi cos θo)` — symmetric, and it keeps the residuals of models whose BRDF grows
-//!   without bound at grazing angles (Ward's `1/sqrt(cos θi cos θo)`) bounded; a
-//!   standard-table entry is ordered and uses `cos θout` as in the thesis. `rms_cos` is
-//!   `E / sqrt(3N)`, comparable across tables.
+//!   entries and channels, `M` measured, `K` the model, `θv` the viewing (outgoing) angle.
+//!   A MERL entry stands for an unordered pair (the table is reciprocal), so there the weight
+//!   is the geometric mean of the two orderings' weights, `w = sqrt(cos θi cos θo)` —
+//!   symmetric, and it keeps the residuals of models whose BRDF grows without bound at
+//!   grazing angles (Ward's `1/sqrt(cos θi cos θo)`) bounded; a standard-table entry is
+//!   ordered and uses `w = cos θout` as in the thesis. `rms_cos` is `E / sqrt(3N)`.
+//! - **What the fit minimises** ([`super::Objective`]): by default the same squared error with
+//!   every entry also weighted by the solid-angle measure of its table cell, so the sum is a
+//!   quadrature of `∫∫ [(M − K) w]² dωi dωo` and does not depend on where the table puts its
+//!   nodes (MERL puts 15 % of them within 2° of the specular direction); `entries` minimises
+//!   the thesis' plain sum over entries instead.
 //! - **SNR** (thesis, section 4.4.3): per channel `10 log10(VAR/MSE)`, `MSE = mean (m − s)²`,
 //!   `VAR = mean (m − m̄)²` over the table's valid entries (unweighted BRDF values).
+//!   `snr_weighted_db` is the same ratio for the quantities the default fit compares: values
+//!   `M·w`, `K·w`, means weighted by the cell measure.
 //! - **Ngan et al. 2005** ("Experimental Analysis of BRDF Models", EGSR): the cosine-weighted
 //!   L2 error integrated over the domain, `sqrt(∫ [(M − K) cos θi]² dωi dωo / ∫ dωi dωo)`, each
 //!   entry weighted by the solid-angle measure of its cell, entries with `θi` or `θo` beyond
 //!   80° left out (as in the paper, where grazing measurements are unreliable). For MERL
-//!   entries `cos θi` is replaced by the symmetric `sqrt(cos θi cos θo)` as above. The measure of a Rusinkiewicz cell is
-//!   `dωi dωo = 4 cos θd sin θh sin θd dθh dφh dθd dφd`, integrated over the cell exactly.
+//!   entries `cos θi` is replaced by the symmetric `w` above. The measure of a Rusinkiewicz
+//!   cell is `dωi dωo = 4 cos θd sin θh sin θd dθh dφh dθd dφd`, integrated over the cell.
 
 use crate::math::Vec3;
 use crate::measured::merl::{self, MerlTable};
@@ -35,8 +41,10 @@ pub struct Sample {
     pub value: [f64; 3],
     /// Thesis weight (`cos θv`; `sqrt(cos θi cos θo)` for MERL entries).
     pub weight: f64,
-    /// Ngan weight: solid-angle measure of the cell (0 beyond 80°).
+    /// Solid-angle measure of the entry's cell (`∫ dωi dωo`, up to a constant factor).
     pub measure: f64,
+    /// Either direction is beyond 80° from the normal (left out of Ngan's figure).
+    pub grazing: bool,
 }
 
 /// The valid entries of a table.
@@ -99,8 +107,8 @@ impl FitData {
                     let Some((wi, wo)) = MerlTable::node_directions(ih, id, ip) else { continue };
                     let (wi, wo) = spread_azimuth(wi, wo, idx);
                     let weight = (wi.z * wo.z).sqrt();
-                    let inside = wi.z >= cos_of_limit() && wo.z >= cos_of_limit();
-                    out.push(Sample { wi, wo, value: t.get(idx), weight, measure: if inside { cell } else { 0.0 } });
+                    let grazing = wi.z < cos_of_limit() || wo.z < cos_of_limit();
+                    out.push(Sample { wi, wo, value: t.get(idx), weight, measure: cell, grazing });
                 }
             }
             out
@@ -122,14 +130,24 @@ impl FitData {
                         continue;
                     }
                     let (wi, wo) = spread_azimuth_pair(StandardTable::bin_directions(i, o, k), idx);
-                    let inside = wi.z >= cos_of_limit() && wo.z >= cos_of_limit();
-                    let measure = if inside { band(i) * band(o) } else { 0.0 };
-                    out.push(Sample { wi, wo, value: t.get(idx), weight: wo.z, measure });
+                    let grazing = wi.z < cos_of_limit() || wo.z < cos_of_limit();
+                    let measure = band(i) * band(o);
+                    out.push(Sample { wi, wo, value: t.get(idx), weight: wo.z, measure, grazing });
                 }
             }
             out
         });
         Self { samples: rows.into_iter().flatten().collect() }
+    }
+
+    /// Keeps the entries whose directions are both within `max_theta` (radians) of the
+    /// normal: grazing measurements are the least reliable (Ngan et al. leave out beyond 80°),
+    /// and models that grow without bound at grazing angles dominate any sum that keeps them.
+    #[must_use]
+    pub fn within(mut self, max_theta: f64) -> Self {
+        let c = max_theta.cos();
+        self.samples.retain(|s| s.wi.z >= c && s.wo.z >= c);
+        self
     }
 
     /// Number of entries.
@@ -154,6 +172,9 @@ pub struct Metrics {
     pub snr_db: [f64; 3],
     /// Mean of the three channels' SNR (dB).
     pub snr_db_mean: f64,
+    /// The SNR of the quantities the default fit compares: `M·w` against `K·w`, means
+    /// weighted by the cell measure (dB, mean of the channels).
+    pub snr_weighted_db: f64,
     /// Plain RMS error per channel (1/sr).
     pub rms: [f64; 3],
     /// Thesis error `E(p) = sqrt(Σ [(M − K) cos θv]²)` (1/sr).
@@ -172,6 +193,10 @@ pub(crate) struct Sums {
     mm: [f64; 3],
     err2: [f64; 3],
     cos_err2: f64,
+    mu: f64,
+    mu_mw: [f64; 3],
+    mu_mw2: [f64; 3],
+    mu_err2: [f64; 3],
     ngan_num: f64,
     ngan_den: f64,
 }
@@ -179,24 +204,37 @@ pub(crate) struct Sums {
 impl Sums {
     pub(crate) fn add(&mut self, s: &Sample, k: [f64; 3]) {
         self.n += 1;
+        self.mu += s.measure;
         for c in 0..3 {
             let m = s.value[c];
             let e = m - k[c];
+            let ew2 = (e * s.weight).powi(2);
             self.m[c] += m;
             self.mm[c] += m * m;
             self.err2[c] += e * e;
-            self.cos_err2 += (e * s.weight).powi(2);
-            self.ngan_num += s.measure * (e * s.weight).powi(2);
+            self.cos_err2 += ew2;
+            self.mu_mw[c] += s.measure * m * s.weight;
+            self.mu_mw2[c] += s.measure * (m * s.weight).powi(2);
+            self.mu_err2[c] += s.measure * ew2;
+            if !s.grazing {
+                self.ngan_num += s.measure * ew2;
+            }
         }
-        self.ngan_den += 3.0 * s.measure;
+        if !s.grazing {
+            self.ngan_den += 3.0 * s.measure;
+        }
     }
 
     pub(crate) fn merge(mut self, o: &Sums) -> Sums {
         self.n += o.n;
+        self.mu += o.mu;
         for c in 0..3 {
             self.m[c] += o.m[c];
             self.mm[c] += o.mm[c];
             self.err2[c] += o.err2[c];
+            self.mu_mw[c] += o.mu_mw[c];
+            self.mu_mw2[c] += o.mu_mw2[c];
+            self.mu_err2[c] += o.mu_err2[c];
         }
         self.cos_err2 += o.cos_err2;
         self.ngan_num += o.ngan_num;
@@ -206,19 +244,25 @@ impl Sums {
 
     pub(crate) fn metrics(&self) -> Metrics {
         let n = self.n.max(1) as f64;
+        let mu = if self.mu > 0.0 { self.mu } else { 1.0 };
         let mut snr = [0.0; 3];
         let mut rms = [0.0; 3];
+        let mut snr_w = 0.0;
         for c in 0..3 {
             let mean = self.m[c] / n;
             let var = (self.mm[c] / n - mean * mean).max(0.0);
             let mse = self.err2[c] / n;
             rms[c] = mse.sqrt();
             snr[c] = snr_db(var, mse);
+            let mean_w = self.mu_mw[c] / mu;
+            let var_w = (self.mu_mw2[c] / mu - mean_w * mean_w).max(0.0);
+            snr_w += snr_db(var_w, self.mu_err2[c] / mu) / 3.0;
         }
         Metrics {
             entries: self.n,
             snr_db: snr,
             snr_db_mean: (snr[0] + snr[1] + snr[2]) / 3.0,
+            snr_weighted_db: snr_w,
             rms,
             thesis_error: self.cos_err2.sqrt(),
             rms_cos: (self.cos_err2 / (3.0 * n)).sqrt(),
@@ -278,7 +322,7 @@ mod tests {
     fn metrics_of_exact_and_offset_predictions() {
         let full = MerlTable::from_fn(|_, _| Some([1.0, 2.0, 3.0]));
         let d = FitData::from_merl(&full);
-        assert!(d.samples.iter().all(|s| s.measure == 0.0 || s.wi.z >= cos_of_limit()));
+        assert!(d.samples.iter().all(|s| s.grazing == (s.wi.z < cos_of_limit() || s.wo.z < cos_of_limit())));
         let m = evaluate(&d, |s| s.value);
         assert_eq!(m.rms, [0.0; 3]);
         assert_eq!(m.ngan, 0.0);

@@ -9,9 +9,9 @@
 //!   repeated (`--lobes k`; the repeated lobes hold their diffuse parameters — `diffuse`,
 //!   `albedo`, `kd` — at 0, so one diffuse term remains), e.g. a diffuse base plus two or
 //!   three Cook-Torrance lobes for car paint. The BRDFs of the lobes add.
-//! - **Objective**: the thesis' cos θv-weighted squared error over the table entries
-//!   ([`metrics`]), minimised by Levenberg-Marquardt ([`lm`]) with forward-difference
-//!   Jacobians and box bounds.
+//! - **Objective**: the thesis' cos θv-weighted squared error ([`metrics`]), by default with
+//!   each entry weighted by the solid angle of its table cell ([`Objective`]), minimised by
+//!   Levenberg-Marquardt ([`lm`]) with forward-difference Jacobians and box bounds.
 //! - **Multi-start**: the defaults and Halton-spread values of the scalar parameters are each
 //!   fitted briefly on a small subset of the table; the best few are refined on a larger
 //!   subset. The subsets are stratified: the brightest quarter of the points (the specular
@@ -333,13 +333,13 @@ fn eval_sum(materials: &[Material], wi: Vec3<f64>, wo: Vec3<f64>) -> [f64; 3] {
 }
 
 /// The LM objective on a (sub)set of table entries.
-struct Objective<'a> {
+struct LeastSquares<'a> {
     model: &'a FitModel,
     /// Entries and their residual scales (`weight · sqrt(multiplicity)`).
     points: Vec<(Sample, f64)>,
 }
 
-impl lm::Problem for Objective<'_> {
+impl lm::Problem for LeastSquares<'_> {
     fn n_vars(&self) -> usize {
         self.model.vars.len()
     }
@@ -362,18 +362,38 @@ impl lm::Problem for Objective<'_> {
     }
 }
 
-/// A stratified subset of `n` entries: the brightest quarter (by weighted peak value) with
-/// multiplicity 1, the rest drawn uniformly with multiplicity `remaining / drawn`.
-fn subsample(data: &FitData, n: usize, seed: u64) -> Vec<(Sample, f64)> {
+/// What the fit minimises (see [`metrics`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Objective {
+    /// `Σ μ [(M − K) w]²`: every entry weighted by its cell's solid-angle measure μ, a
+    /// quadrature of the thesis' error integrated over the domain (independent of where the
+    /// table puts its nodes).
+    #[default]
+    Integral,
+    /// `Σ [(M − K) w]²` over the entries, literally the thesis' sum.
+    Entries,
+}
+
+/// A stratified subset of `n` entries with their residual scales: the largest quarter of the
+/// weighted values with multiplicity 1, the rest drawn uniformly with multiplicity
+/// `remaining / drawn`. The scale is `w · sqrt(μ · multiplicity)`, `μ` the cell measure
+/// relative to its mean (1 for [`Objective::Entries`]).
+fn subsample(data: &FitData, n: usize, seed: u64, objective: Objective) -> Vec<(Sample, f64)> {
     let total = data.samples.len();
+    let mean_mu = data.samples.iter().map(|s| s.measure).sum::<f64>() / total.max(1) as f64;
+    let base = |s: &Sample| match objective {
+        Objective::Integral if mean_mu > 0.0 => s.weight * (s.measure / mean_mu).sqrt(),
+        _ => s.weight,
+    };
     if n >= total {
-        return data.samples.iter().map(|s| (*s, s.weight)).collect();
+        return data.samples.iter().map(|s| (*s, base(s))).collect();
     }
-    let key = |s: &Sample| s.weight * s.value.iter().copied().fold(0.0, f64::max);
+    let key = |s: &Sample| base(s) * s.value.iter().copied().fold(0.0, f64::max);
     let mut order: Vec<usize> = (0..total).collect();
     let top = n / 4;
     order.select_nth_unstable_by(top, |a, b| key(&data.samples[*b]).total_cmp(&key(&data.samples[*a])));
-    let mut out: Vec<(Sample, f64)> = order[..top].iter().map(|&i| (data.samples[i], data.samples[i].weight)).collect();
+    let mut out: Vec<(Sample, f64)> = order[..top].iter().map(|&i| (data.samples[i], base(&data.samples[i]))).collect();
     let rest = &mut order[top..];
     let draw = n - top;
     let mult = (rest.len() as f64 / draw as f64).sqrt();
@@ -382,7 +402,7 @@ fn subsample(data: &FitData, n: usize, seed: u64) -> Vec<(Sample, f64)> {
         let j = k + (rng.uniform() * (rest.len() - k) as f64) as usize;
         rest.swap(k, j.min(rest.len() - 1));
         let s = data.samples[rest[k]];
-        out.push((s, s.weight * mult));
+        out.push((s, base(&s) * mult));
     }
     out
 }
@@ -406,6 +426,12 @@ pub struct FitOptions {
     pub threads: usize,
     /// Seed of the subsets.
     pub seed: u64,
+    /// What the fit minimises.
+    pub objective: Objective,
+    /// Wall-time budget of one fit in seconds (`None`: unlimited). The multi-start stage gets
+    /// 40 % of it; iterations stop when it is spent (the report says `"stop": "time"`).
+    /// Models whose material takes long to build (coated paint: tens of ms) need one.
+    pub budget_seconds: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -419,6 +445,8 @@ impl Default for FitOptions {
             max_iterations: 60,
             threads: std::thread::available_parallelism().map_or(1, |t| t.get()),
             seed: 0x5eed_f17,
+            objective: Objective::Integral,
+            budget_seconds: None,
         }
     }
 }
@@ -460,9 +488,9 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
     }
     let threads = opts.threads.max(1);
     let (lo, hi) = model.bounds();
-    let coarse = Objective { model, points: subsample(data, opts.coarse_points.max(16), opts.seed) };
+    let coarse = LeastSquares { model, points: subsample(data, opts.coarse_points.max(16), opts.seed, opts.objective) };
     let fine_n = if opts.points == 0 { usize::MAX } else { opts.points };
-    let fine = Objective { model, points: subsample(data, fine_n, opts.seed ^ 0x9e37) };
+    let fine = LeastSquares { model, points: subsample(data, fine_n, opts.seed ^ 0x9e37, opts.objective) };
     let starts = model.starts(opts.starts.max(1));
     if starts.is_empty() {
         return Err(Error::Invalid {
@@ -470,7 +498,13 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
             reason: format!("{}: no starting point builds (check the fixed parameters)", model.label()),
         });
     }
-    let coarse_cfg = lm::LmConfig { max_iterations: opts.coarse_iterations, ftol: 1e-6, ..lm::LmConfig::default() };
+    let deadline = |share: f64| opts.budget_seconds.map(|b| t0 + std::time::Duration::from_secs_f64(b.max(0.0) * share));
+    let coarse_cfg = lm::LmConfig {
+        max_iterations: opts.coarse_iterations,
+        ftol: 1e-6,
+        deadline: deadline(0.4),
+        ..lm::LmConfig::default()
+    };
     let mut stage_a = crate::measured::parallel_rows_with(starts.len(), threads, |i| {
         lm::minimize(&coarse, &starts[i], &lo, &hi, &coarse_cfg)
     });
@@ -492,7 +526,12 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
         picks.push(starts[0].clone());
     }
     let inner = (threads / picks.len()).max(1);
-    let fine_cfg = lm::LmConfig { max_iterations: opts.max_iterations, threads: inner, ..lm::LmConfig::default() };
+    let fine_cfg = lm::LmConfig {
+        max_iterations: opts.max_iterations,
+        threads: inner,
+        deadline: deadline(1.0),
+        ..lm::LmConfig::default()
+    };
     let stage_b =
         crate::measured::parallel_rows_with(picks.len(), threads, |i| lm::minimize(&fine, &picks[i], &lo, &hi, &fine_cfg));
     total_iterations += stage_b.iter().map(|r| r.iterations).sum::<usize>();

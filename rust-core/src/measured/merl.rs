@@ -37,6 +37,8 @@ pub const N_PHI_D: usize = 180;
 pub const N_ENTRIES: usize = N_THETA_H * N_THETA_D * N_PHI_D;
 /// Stored value × scale = BRDF (1/sr), per channel (red, green, blue).
 pub const SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
+/// `cos θ` at or below which a node direction counts as at the horizon.
+pub const HORIZON: f64 = 1e-6;
 /// Size of a MERL file in bytes.
 pub const FILE_BYTES: usize = 12 + 3 * N_ENTRIES * 8;
 
@@ -157,12 +159,13 @@ impl MerlTable {
         HalfDiff { theta_h: theta_h_node(ih), phi_h: 0.0, theta_d: theta_d_node(id), phi_d: phi_d_node(ip) }
     }
 
-    /// The direction pair `(wi, wo)` of node `(i, j, k)`; `None` when one is at or below the
-    /// horizon (such entries stay without a measurement).
+    /// The direction pair `(wi, wo)` of node `(i, j, k)`; `None` when one is below or at the
+    /// horizon (`cos θ ≤ 1e-6`: nodes with `θh + θd = 90°` land there up to rounding). Such
+    /// entries stay without a measurement.
     #[must_use]
     pub fn node_directions(ih: usize, id: usize, ip: usize) -> Option<(Vec3<f64>, Vec3<f64>)> {
         let (wi, wo) = from_half_diff(&Self::node(ih, id, ip));
-        (wi.z > 0.0 && wo.z > 0.0).then_some((wi, wo))
+        (wi.z > HORIZON && wo.z > HORIZON).then_some((wi, wo))
     }
 
     /// Tabulates `f(wi, wo)` (RGB, 1/sr) at every node above the horizon, on all cores.
