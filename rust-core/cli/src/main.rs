@@ -82,7 +82,7 @@ struct FitArgs {
     #[arg(long)]
     budget: Option<f64>,
     /// Seed of the fit subsets (and of --noise).
-    #[arg(long, default_value_t = 0x5eed_f17)]
+    #[arg(long, default_value_t = 0x05ee_df17)]
     seed: u64,
     /// Write a MERL table of a material instead of fitting: a preset name, a model name,
     /// material JSON, a JSON list of materials (their BRDFs add) or a file holding one.

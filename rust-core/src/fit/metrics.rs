@@ -205,9 +205,9 @@ impl Sums {
     pub(crate) fn add(&mut self, s: &Sample, k: [f64; 3]) {
         self.n += 1;
         self.mu += s.measure;
-        for c in 0..3 {
+        for (c, kc) in k.iter().enumerate() {
             let m = s.value[c];
-            let e = m - k[c];
+            let e = m - kc;
             let ew2 = (e * s.weight).powi(2);
             self.m[c] += m;
             self.mm[c] += m * m;

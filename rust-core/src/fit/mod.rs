@@ -104,6 +104,20 @@ fn model_object(v: &Value) -> Result<(&'static ModelInfo, Map<String, Value>), E
     Ok((info, fixed))
 }
 
+/// `fixed` with every diffuse parameter ([`DIFFUSE_PARAMS`]) of `info` not already fixed held at 0.
+fn zero_diffuse(info: &'static ModelInfo, mut fixed: Map<String, Value>) -> Map<String, Value> {
+    for spec in info.params {
+        if DIFFUSE_PARAMS.contains(&spec.name)
+            && !fixed.contains_key(spec.name)
+            && spec.min <= 0.0
+            && matches!(spec.kind, ParamKind::Scalar | ParamKind::Color)
+        {
+            fixed.insert(spec.name.into(), Value::from(0.0));
+        }
+    }
+    fixed
+}
+
 fn find_model(name: &str) -> Result<&'static ModelInfo, Error> {
     crate::models::find(name).ok_or_else(|| Error::UnknownModel {
         name: name.to_string(),
@@ -124,8 +138,9 @@ pub fn fittable_models() -> Vec<&'static ModelInfo> {
 }
 
 impl FitModel {
-    /// Parses a fit model: a model name, names joined by `+` (a sum of lobes), a JSON object
-    /// `{"model": ..., fixed parameters...}` or a JSON list of such objects.
+    /// Parses a fit model: a model name, names joined by `+` (a sum of lobes; the lobes after
+    /// the first hold their diffuse parameters at 0), a JSON object `{"model": ..., fixed
+    /// parameters...}` or a JSON list of such objects (exactly as given).
     pub fn parse(spec: &str) -> Result<Self, Error> {
         let s = spec.trim();
         let lobes = if s.starts_with('[') || s.starts_with('{') {
@@ -135,7 +150,15 @@ impl FitModel {
                 _ => vec![model_object(&v)?],
             }
         } else {
-            s.split('+').map(|n| Ok((find_model(n.trim())?, Map::new()))).collect::<Result<Vec<_>, Error>>()?
+            // By names: every lobe after the first holds its diffuse parameters at 0, so the
+            // sum has one diffuse term (`lambert+ward` = Lambert base + Ward specular lobe).
+            let mut lobes = Vec::new();
+            for (i, n) in s.split('+').enumerate() {
+                let info = find_model(n.trim())?;
+                let fixed = if i == 0 { Map::new() } else { zero_diffuse(info, Map::new()) };
+                lobes.push((info, fixed));
+            }
+            lobes
         };
         Self::from_lobes(lobes.into_iter().map(|(info, fixed)| Lobe { info, fixed }).collect())
     }
@@ -193,35 +216,22 @@ impl FitModel {
         }
         let mut lobes = self.lobes;
         let last = lobes.last().expect("at least one lobe").clone();
-        let mut copy = last.clone();
-        for spec in last.info.params {
-            if DIFFUSE_PARAMS.contains(&spec.name)
-                && !copy.fixed.contains_key(spec.name)
-                && spec.min <= 0.0
-                && matches!(spec.kind, ParamKind::Scalar | ParamKind::Color)
-            {
-                copy.fixed.insert(spec.name.into(), Value::from(0.0));
-            }
-        }
+        let copy = Lobe { info: last.info, fixed: zero_diffuse(last.info, last.fixed) };
         while lobes.len() < k {
             lobes.push(copy.clone());
         }
         Self::from_lobes(lobes)
     }
 
-    /// A short label: lobe names joined by `+`, repeats written `name×k`.
+    /// A short label: lobe names joined by `+`, repeats written `name×k` (fixed parameters are
+    /// in the reported materials).
     #[must_use]
     pub fn label(&self) -> String {
         let mut parts: Vec<(String, usize)> = Vec::new();
         for l in &self.lobes {
-            let name = if l.fixed.is_empty() || parts.last().is_some_and(|p| p.0 == l.info.name) {
-                l.info.name.to_string()
-            } else {
-                format!("{}{}", l.info.name, Value::Object(l.fixed.clone()))
-            };
             match parts.last_mut() {
                 Some((n, c)) if *n == l.info.name => *c += 1,
-                _ => parts.push((name, 1)),
+                _ => parts.push((l.info.name.to_string(), 1)),
             }
         }
         parts.iter().map(|(n, c)| if *c > 1 { format!("{n}×{c}") } else { n.clone() }).collect::<Vec<_>>().join("+")
@@ -444,7 +454,7 @@ impl Default for FitOptions {
             coarse_iterations: 20,
             max_iterations: 60,
             threads: std::thread::available_parallelism().map_or(1, |t| t.get()),
-            seed: 0x5eed_f17,
+            seed: 0x05ee_df17,
             objective: Objective::Integral,
             budget_seconds: None,
         }
@@ -498,7 +508,8 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
             reason: format!("{}: no starting point builds (check the fixed parameters)", model.label()),
         });
     }
-    let deadline = |share: f64| opts.budget_seconds.map(|b| t0 + std::time::Duration::from_secs_f64(b.max(0.0) * share));
+    let deadline =
+        |share: f64| opts.budget_seconds.map(|b| t0 + std::time::Duration::from_secs_f64(b.max(0.0) * share));
     let coarse_cfg = lm::LmConfig {
         max_iterations: opts.coarse_iterations,
         ftol: 1e-6,
@@ -532,8 +543,9 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
         deadline: deadline(1.0),
         ..lm::LmConfig::default()
     };
-    let stage_b =
-        crate::measured::parallel_rows_with(picks.len(), threads, |i| lm::minimize(&fine, &picks[i], &lo, &hi, &fine_cfg));
+    let stage_b = crate::measured::parallel_rows_with(picks.len(), threads, |i| {
+        lm::minimize(&fine, &picks[i], &lo, &hi, &fine_cfg)
+    });
     total_iterations += stage_b.iter().map(|r| r.iterations).sum::<usize>();
     evaluations += stage_b.iter().map(|r| r.evaluations).sum::<usize>();
     let best = stage_b

@@ -26,13 +26,9 @@ fn ward_parameters_are_recovered() {
     let data = FitData::from_merl(&table_of(truth));
     let r = fit(&FitModel::parse("ward").unwrap(), &data, &quick()).unwrap();
     assert!(r.metrics.snr_db_mean > 60.0, "{:?}", r.metrics);
-    for (name, want) in [
-        ("diffuse[0]", 0.3),
-        ("diffuse[2]", 0.05),
-        ("specular[1]", 0.25),
-        ("alpha_x", 0.08),
-        ("alpha_y", 0.08),
-    ] {
+    for (name, want) in
+        [("diffuse[0]", 0.3), ("diffuse[2]", 0.05), ("specular[1]", 0.25), ("alpha_x", 0.08), ("alpha_y", 0.08)]
+    {
         assert!(close(param(&r, name), want, 1e-3), "{name}: {} vs {want}; {:?}", param(&r, name), r.parameters);
     }
 }
@@ -128,7 +124,9 @@ fn noisy_table_fits_to_the_noise_level_and_standard_tables_fit_too() {
 
 #[test]
 fn fit_models_parse_and_reject_clearly() {
-    assert_eq!(FitModel::parse("lambert+ward").unwrap().label(), "lambert+ward");
+    let sum = FitModel::parse("lambert+ward").unwrap();
+    assert_eq!(sum.label(), "lambert+ward");
+    assert!(sum.variables().iter().all(|v| !(v.lobe == 1 && v.param == "diffuse")));
     let m = FitModel::parse(r#"{"model": "ward", "alpha_y": 0.2}"#).unwrap();
     assert!(m.variables().iter().all(|v| v.param != "alpha_y"));
     assert!(FitModel::parse("nope").unwrap_err().to_string().contains("unknown model"));
@@ -144,4 +142,3 @@ fn fit_models_parse_and_reject_clearly() {
     assert!((v.value(v.internal(0.37)) - 0.37).abs() < 1e-14);
     assert!(fittable_models().iter().all(|m| m.name != "measured"));
 }
-

@@ -49,8 +49,8 @@ impl Accumulator {
     fn add(&mut self, bin: Option<usize>, v: [f64; 3]) {
         match bin {
             Some(b) => {
-                for c in 0..3 {
-                    self.sum[b][c] += v[c];
+                for (acc, x) in self.sum[b].iter_mut().zip(v) {
+                    *acc += x;
                 }
                 self.count[b] += 1;
                 self.stats.binned += 1;
@@ -111,8 +111,8 @@ pub fn bin_standard(
                 if reciprocal {
                     let b = standard::bin_of(&to_standard(wo, wi));
                     if let Some(b) = b {
-                        for c in 0..3 {
-                            acc.sum[b][c] += v[c];
+                        for (a, x) in acc.sum[b].iter_mut().zip(v) {
+                            *a += x;
                         }
                         acc.count[b] += 1;
                     }

@@ -454,8 +454,8 @@ mod tests {
         let mut worst = 0.0f64;
         for _ in 0..20_000 {
             let z = |r: &mut Pcg32| r.uniform() * 0.95 + 0.05;
-            let wi = super::super::parameterization::spherical(z(&mut rng).acos(), 6.28 * rng.uniform());
-            let wo = super::super::parameterization::spherical(z(&mut rng).acos(), 6.28 * rng.uniform());
+            let wi = super::super::parameterization::spherical(z(&mut rng).acos(), 2.0 * PI * rng.uniform());
+            let wo = super::super::parameterization::spherical(z(&mut rng).acos(), 2.0 * PI * rng.uniform());
             let want = analytic(wi, wo).unwrap();
             let got = t.eval(wi, wo);
             worst = worst.max((got[0] - want[0]).abs() / want[0]);

@@ -43,8 +43,7 @@ use sampler::TabulatedSampler;
 use std::sync::{Arc, OnceLock};
 
 /// The material whose table is the built-in default of the `measured` model.
-pub const BUILTIN_MATERIAL: &str =
-    r#"{"model": "ward", "diffuse": [0.35, 0.12, 0.06], "specular": [0.25, 0.25, 0.25], "alpha_x": 0.15, "alpha_y": 0.15}"#;
+pub const BUILTIN_MATERIAL: &str = r#"{"model": "ward", "diffuse": [0.35, 0.12, 0.06], "specular": [0.25, 0.25, 0.25], "alpha_x": 0.15, "alpha_y": 0.15}"#;
 
 const PARAMS: &[ParamSpec] =
     &[ParamSpec::text("file", "", "path of a MERL .binary table; empty: the built-in table (a tabulated Ward BRDF)")];
@@ -96,7 +95,11 @@ pub fn tabulate(materials: &[Material]) -> MerlTable {
 /// A `measured` material from an in-memory table.
 #[must_use]
 pub fn material_from_table(table: MerlTable) -> Material {
-    Material::from_parts(&INFO, Params::defaults(INFO.name, INFO.params), Model::Measured(Measured::from_table(Arc::new(table))))
+    Material::from_parts(
+        &INFO,
+        Params::defaults(INFO.name, INFO.params),
+        Model::Measured(Measured::from_table(Arc::new(table))),
+    )
 }
 
 /// Runs `job(i)` for `i in 0..n` on all cores; results in order.

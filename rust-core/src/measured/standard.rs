@@ -42,7 +42,7 @@ pub fn phi_centre(k: usize) -> f64 {
 #[inline]
 #[must_use]
 pub fn bin_of(s: &StandardAngles) -> Option<usize> {
-    let t = |x: f64| (x >= 0.0 && x < HALF_PI).then(|| ((x / HALF_PI * N_THETA as f64) as usize).min(N_THETA - 1));
+    let t = |x: f64| (0.0..HALF_PI).contains(&x).then(|| ((x / HALF_PI * N_THETA as f64) as usize).min(N_THETA - 1));
     let k = ((s.phi_diff.clamp(0.0, PI) / PI * N_PHI as f64) as usize).min(N_PHI - 1);
     Some(index(t(s.theta_in)?, t(s.theta_out)?, k))
 }
@@ -71,7 +71,11 @@ impl StandardTable {
     /// The direction pair at the centre of bin `(i, o, k)` (`wo` at azimuth 0).
     #[must_use]
     pub fn bin_directions(i: usize, o: usize, k: usize) -> (Vec3<f64>, Vec3<f64>) {
-        from_standard(&StandardAngles { theta_in: theta_centre(i), theta_out: theta_centre(o), phi_diff: phi_centre(k) })
+        from_standard(&StandardAngles {
+            theta_in: theta_centre(i),
+            theta_out: theta_centre(o),
+            phi_diff: phi_centre(k),
+        })
     }
 
     /// Tabulates `f(wi, wo)` at every bin centre, on all cores.
