@@ -77,6 +77,12 @@ impl Material {
         Ok(Self { model, info, params })
     }
 
+    /// Assembles a material from a model built outside its registry `build` (e.g. a measured
+    /// table held in memory); `params` must be the model's.
+    pub(crate) fn from_parts(info: &'static ModelInfo, params: Params, model: Model) -> Self {
+        Self { model, info, params }
+    }
+
     /// A model with all its defaults.
     pub fn default_of(info: &'static ModelInfo) -> Result<Self, Error> {
         Self::from_params(info, Params::defaults(info.name, info.params))

@@ -21,6 +21,8 @@ pub enum ParamKind {
     Choice(&'static [&'static str]),
     /// A structured JSON value validated by the model itself (e.g. Lafortune's lobe list).
     Json,
+    /// A free string (e.g. a file path); the model validates its content when it builds.
+    Text,
 }
 
 /// The default value of a parameter.
@@ -39,6 +41,8 @@ pub enum Default {
     Choice(&'static str),
     /// JSON text.
     Json(&'static str),
+    /// A free string.
+    Text(&'static str),
 }
 
 /// Specification of one model parameter; `lacquer models --json` prints these.
@@ -113,6 +117,11 @@ impl ParamSpec {
             unit: "",
             doc,
         }
+    }
+    /// A free string parameter (e.g. a file path), validated by the model when it builds.
+    #[must_use]
+    pub const fn text(name: &'static str, default: &'static str, doc: &'static str) -> Self {
+        Self { name, kind: ParamKind::Text, default: Default::Text(default), min: 0.0, max: 0.0, unit: "", doc }
     }
     /// A structured JSON parameter, validated by the model.
     #[must_use]
@@ -198,6 +207,7 @@ fn parse_value(spec: &ParamSpec, v: &Value) -> Result<ParamValue, Error> {
             ParamValue::Text(s.to_string())
         }
         ParamKind::Json => ParamValue::Json(v.clone()),
+        ParamKind::Text => ParamValue::Text(v.as_str().ok_or_else(|| wrong("a string"))?.to_string()),
     })
 }
 
@@ -207,7 +217,7 @@ fn default_value(spec: &ParamSpec) -> ParamValue {
         Default::Color(c) => ParamValue::Color(c),
         Default::Integer(i) => ParamValue::Integer(i),
         Default::Bool(b) => ParamValue::Bool(b),
-        Default::Choice(s) => ParamValue::Text(s.to_string()),
+        Default::Choice(s) | Default::Text(s) => ParamValue::Text(s.to_string()),
         Default::Json(s) => ParamValue::Json(serde_json::from_str(s).expect("default JSON of a parameter is valid")),
     }
 }
@@ -296,6 +306,14 @@ impl Params {
         match self.get(name) {
             ParamValue::Text(s) => s,
             other => panic!("parameter {name} is not a choice: {other:?}"),
+        }
+    }
+    /// A text parameter's value.
+    #[must_use]
+    pub fn text(&self, name: &str) -> &str {
+        match self.get(name) {
+            ParamValue::Text(s) => s,
+            other => panic!("parameter {name} is not text: {other:?}"),
         }
     }
     /// A structured parameter's JSON.

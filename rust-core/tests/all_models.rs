@@ -102,7 +102,7 @@ fn params_from_unit(info: &'static ModelInfo, u: &[f64]) -> Map<String, Value> {
             ParamKind::Integer => Value::from(lerp(t).round() as i64),
             ParamKind::Bool => Value::from(t < 0.5),
             ParamKind::Choice(c) => Value::from(c[((t * c.len() as f64) as usize).min(c.len() - 1)]),
-            ParamKind::Json => continue,
+            ParamKind::Json | ParamKind::Text => continue,
         };
         obj.insert(spec.name.to_string(), v);
     }

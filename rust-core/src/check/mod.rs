@@ -346,6 +346,8 @@ fn random_params(info: &'static ModelInfo, rng: &mut Pcg32) -> Map<String, Value
                 Default::Json(s) => serde_json::from_str(s).expect("valid default JSON"),
                 _ => continue,
             },
+            // Free strings (file paths) keep their default.
+            ParamKind::Text => continue,
         };
         obj.insert(spec.name.to_string(), v);
     }

@@ -72,6 +72,7 @@ models! {
     FastPhong(fast_phong::FastPhong),
     Lafortune(lafortune::Lafortune),
     Lambert(lambert::Lambert),
+    Measured(measured::Measured),
     ModifiedPhong(modified_phong::ModifiedPhong),
     NeumannStretchBlinnPhong(neumann_stretch_blinn_phong::NeumannStretchBlinnPhong),
     NeumannStretchPhong(neumann_stretch_phong::NeumannStretchPhong),

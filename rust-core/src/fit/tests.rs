@@ -1,0 +1,144 @@
+//! Recovery tests: tables generated from known parameters are fitted back to them.
+
+use super::*;
+use crate::measured::standard::StandardTable;
+use crate::measured::tabulate;
+
+fn table_of(json: &str) -> MerlTable {
+    tabulate(&materials_from_spec(json).unwrap())
+}
+
+fn quick() -> FitOptions {
+    FitOptions { points: 6_000, coarse_points: 1_000, starts: 6, ..FitOptions::default() }
+}
+
+fn param(r: &FitReport, name: &str) -> f64 {
+    r.parameters.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("no {name} in {:?}", r.parameters)).1
+}
+
+fn close(a: f64, b: f64, rel: f64) -> bool {
+    (a - b).abs() <= rel * b.abs().max(1e-3)
+}
+
+#[test]
+fn ward_parameters_are_recovered() {
+    let truth = r#"{"model": "ward", "diffuse": [0.3, 0.1, 0.05], "specular": [0.2, 0.25, 0.3], "alpha_x": 0.08, "alpha_y": 0.08}"#;
+    let data = FitData::from_merl(&table_of(truth));
+    let r = fit(&FitModel::parse("ward").unwrap(), &data, &quick()).unwrap();
+    assert!(r.metrics.snr_db_mean > 60.0, "{:?}", r.metrics);
+    for (name, want) in
+        [("diffuse[0]", 0.3), ("diffuse[2]", 0.05), ("specular[1]", 0.25), ("alpha_x", 0.08), ("alpha_y", 0.08)]
+    {
+        assert!(close(param(&r, name), want, 1e-3), "{name}: {} vs {want}; {:?}", param(&r, name), r.parameters);
+    }
+}
+
+#[test]
+fn every_model_refits_a_table_of_its_own() {
+    // For every registered model: a table generated at parameters away from its defaults is
+    // fitted back by the same model (multi-start from the defaults and Halton points), to the
+    // stated tolerance in BRDF space: SNR ≥ 30 dB on the whole table. Models whose material
+    // takes over 2 ms to build (coated paint) fit their first colour and first two scalar
+    // parameters, the others held at the truth, to keep the test short.
+    let mut failures = Vec::new();
+    for info in fittable_models() {
+        let mut model = FitModel::parse(info.name).unwrap();
+        let truth_z: Vec<f64> = model
+            .variables()
+            .iter()
+            .map(|v| {
+                let (lo, hi) = v.bounds();
+                if v.channel.is_some() {
+                    v.internal(0.8 * v.default)
+                } else {
+                    lo + 0.3 * (hi - lo)
+                }
+            })
+            .collect();
+        let truth = match model.materials(&truth_z) {
+            Ok(m) => m,
+            Err(_) => model.materials(&model.starts(1)[0]).unwrap(),
+        };
+        let t = Instant::now();
+        let _ = model.materials(&truth_z);
+        if t.elapsed().as_secs_f64() > 2e-3 {
+            let mut obj = truth[0].to_json().as_object().unwrap().clone();
+            let colour = info.params.iter().find(|p| p.kind == ParamKind::Color).map(|p| p.name);
+            let scalars: Vec<&str> =
+                info.params.iter().filter(|p| p.kind == ParamKind::Scalar).take(2).map(|p| p.name).collect();
+            obj.retain(|k, _| k == "model" || (Some(k.as_str()) != colour && !scalars.contains(&k.as_str())));
+            model = FitModel::parse(&Value::Object(obj).to_string()).unwrap();
+        }
+        let data = FitData::from_merl(&tabulate(&truth));
+        let opts = FitOptions { points: 4_000, coarse_points: 800, starts: 6, ..FitOptions::default() };
+        match fit(&model, &data, &opts) {
+            Ok(r) if r.metrics.snr_db_mean >= 30.0 => {}
+            Ok(r) => failures.push(format!(
+                "{}: SNR {:.1} dB, truth {:?}, fitted {:?}",
+                info.name,
+                r.metrics.snr_db_mean,
+                truth.iter().map(Material::to_json).collect::<Vec<_>>(),
+                r.parameters
+            )),
+            Err(e) => failures.push(format!("{}: {e}", info.name)),
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn two_lobe_sum_is_recovered() {
+    let truth = r#"[{"model": "lambert", "albedo": [0.2, 0.1, 0.05]},
+        {"model": "ward", "diffuse": 0, "specular": 0.05, "alpha_x": 0.04, "alpha_y": 0.04},
+        {"model": "ward", "diffuse": 0, "specular": 0.3, "alpha_x": 0.3, "alpha_y": 0.3}]"#;
+    let data = FitData::from_merl(&table_of(truth));
+    let model = FitModel::parse("ward").unwrap().with_lobes(2).unwrap();
+    assert_eq!(model.label(), "ward×2");
+    assert!(model.variables().iter().all(|v| !(v.lobe == 1 && v.param == "diffuse")));
+    let opts = FitOptions { starts: 8, ..quick() };
+    let r = fit(&model, &data, &opts).unwrap();
+    assert!(r.metrics.snr_db_mean > 40.0, "{:?} {:?}", r.metrics, r.parameters);
+    let mut alphas = [param(&r, "0.alpha_x"), param(&r, "1.alpha_x")];
+    alphas.sort_by(f64::total_cmp);
+    assert!(close(alphas[0], 0.04, 0.02) && close(alphas[1], 0.3, 0.02), "{alphas:?}");
+    assert!(close(param(&r, "0.diffuse[0]"), 0.2, 0.02), "{:?}", r.parameters);
+}
+
+#[test]
+fn noisy_table_fits_to_the_noise_level_and_standard_tables_fit_too() {
+    let truth = r#"{"model": "ward", "diffuse": [0.4, 0.2, 0.1], "specular": 0.2, "alpha_x": 0.12, "alpha_y": 0.12}"#;
+    let mut t = table_of(truth);
+    add_noise(&mut t, 0.05, 7);
+    let data = FitData::from_merl(&t);
+    let r = fit(&FitModel::parse("ward").unwrap(), &data, &quick()).unwrap();
+    assert!(close(param(&r, "alpha_x"), 0.12, 0.03), "{:?}", r.parameters);
+    assert!(close(param(&r, "diffuse[0]"), 0.4, 0.03), "{:?}", r.parameters);
+    // 5 % multiplicative noise bounds the SNR: MSE ≈ 0.0025·mean(m²).
+    assert!(r.metrics.snr_db_mean > 10.0 && r.metrics.snr_db_mean < 40.0, "{:?}", r.metrics);
+
+    let std_t = StandardTable::from_fn(|wi, wo| Some(materials_from_spec(truth).unwrap()[0].eval(wi, wo).to_array()));
+    let r = fit(&FitModel::parse("ward").unwrap(), &FitData::from_standard(&std_t), &quick()).unwrap();
+    assert!(r.metrics.snr_db_mean > 50.0, "{:?}", r.metrics);
+    assert!(close(param(&r, "alpha_y"), 0.12, 1e-3), "{:?}", r.parameters);
+}
+
+#[test]
+fn fit_models_parse_and_reject_clearly() {
+    let sum = FitModel::parse("lambert+ward").unwrap();
+    assert_eq!(sum.label(), "lambert+ward");
+    assert!(sum.variables().iter().all(|v| !(v.lobe == 1 && v.param == "diffuse")));
+    let m = FitModel::parse(r#"{"model": "ward", "alpha_y": 0.2}"#).unwrap();
+    assert!(m.variables().iter().all(|v| v.param != "alpha_y"));
+    assert!(FitModel::parse("nope").unwrap_err().to_string().contains("unknown model"));
+    let e = FitModel::parse("measured").unwrap_err().to_string();
+    assert!(e.contains("no free numeric parameter"), "{e}");
+    let e = FitModel::parse(r#"{"model": "ward", "alpha_x": 7}"#).unwrap_err().to_string();
+    assert!(e.contains("alpha_x"), "{e}");
+    // Log-space variables for ranges over two decades.
+    let w = FitModel::parse("ward").unwrap();
+    assert!(w.variables().iter().find(|v| v.param == "alpha_x").unwrap().log);
+    assert!(!w.variables().iter().find(|v| v.param == "diffuse").unwrap().log);
+    let v = w.variables().iter().find(|v| v.param == "alpha_x").unwrap();
+    assert!((v.value(v.internal(0.37)) - 0.37).abs() < 1e-14);
+    assert!(fittable_models().iter().all(|m| m.name != "measured"));
+}
