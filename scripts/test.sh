@@ -25,10 +25,10 @@ cargo test --workspace
 step "lacquer check --all (standard configuration, release build)"
 cargo run --release -q -p lacquer-cli -- check --all
 
-step "lacquer render: EXR read back with OpenImageIO (pytest)"
+step "Python cross-language tests: EXR read back with OpenImageIO, fits of Mitsuba-sampled tables (pytest)"
 cargo build --release -q -p lacquer-cli
 venv="$(bash scripts/python-env.sh)"
-"$venv/bin/python" -m pytest -q tests/test_render_exr.py
+"$venv/bin/python" -m pytest -q tests/test_render_exr.py tests/test_fit_mitsuba.py
 
 for extra in c-api/test.sh; do
   if [ -f "$extra" ]; then
