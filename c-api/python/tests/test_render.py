@@ -17,7 +17,8 @@ def test_render_returns_a_finite_image_and_reports_progress():
 
 def test_render_cancel_and_errors():
     with pytest.raises(lacquer.CancelledError):
-        lacquer.render({"preset": "white_lambert", "width": 8, "height": 8, "spp": 1}, progress=lambda f: False)
+        # Progress is polled every 100 ms: the job must run longer than that to be cancelled.
+        lacquer.render({"preset": "gold_flake_0", "width": 64, "height": 64, "spp": 4096}, progress=lambda f: False)
     with pytest.raises(lacquer.InvalidArgumentError, match="no_such"):
         lacquer.render({"preset": "no_such_preset"})
     with pytest.raises(lacquer.InvalidArgumentError):

@@ -477,8 +477,10 @@ fn render_produces_an_image_reports_errors_and_cancels() {
     }
     let mut img2: *mut lq_image = std::ptr::null_mut();
     let bad = CString::new(r#"{"preset": "no_such_preset"}"#).unwrap();
+    // Progress is polled every 100 ms: a cancellable job must run longer than that.
+    let long = CString::new(r#"{"preset": "gold_flake_0", "width": 64, "height": 64, "spp": 4096}"#).unwrap();
     unsafe {
-        assert_eq!(lq_render(job.as_ptr(), Some(stop), std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_CANCELLED);
+        assert_eq!(lq_render(long.as_ptr(), Some(stop), std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_CANCELLED);
         assert!(img2.is_null());
         assert_eq!(lq_render(bad.as_ptr(), None, std::ptr::null_mut(), &mut img2), lq_status::LQ_ERR_INVALID_ARGUMENT);
         assert!(img2.is_null());
