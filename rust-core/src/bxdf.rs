@@ -130,6 +130,21 @@ pub struct ModelInfo {
     pub build: fn(&Params) -> Result<crate::models::Model, Error>,
 }
 
+impl ModelInfo {
+    /// The entry as `lacquer models --json` and the C ABI list it: name, summary, reference,
+    /// claims and parameters (default, range, unit, meaning).
+    #[must_use]
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "name": self.name,
+            "summary": self.summary,
+            "reference": self.reference,
+            "claims": self.claims,
+            "params": self.params,
+        })
+    }
+}
+
 impl std::fmt::Debug for ModelInfo {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ModelInfo").field("name", &self.name).finish_non_exhaustive()

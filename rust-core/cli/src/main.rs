@@ -71,10 +71,7 @@ fn main() -> ExitCode {
 
 fn list_models(as_json: bool) -> ExitCode {
     if as_json {
-        let list: Vec<Value> = models::all()
-            .iter()
-            .map(|m| json!({"name": m.name, "summary": m.summary, "reference": m.reference, "claims": m.claims, "params": m.params}))
-            .collect();
+        let list: Vec<Value> = models::all().iter().map(|m| m.to_json()).collect();
         println!("{}", serde_json::to_string_pretty(&list).expect("serialisable"));
         return ExitCode::SUCCESS;
     }

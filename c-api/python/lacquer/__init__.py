@@ -1,0 +1,426 @@
+"""Lacquer: physically checked BRDFs, from Python.
+
+A ctypes + numpy wrapper over liblacquer's C ABI; every number comes from the library.
+
+Conventions: directions are in the local shading frame (z = normal, x = tangent), ``wi``
+toward the light and ``wo`` toward the viewer, both pointing away from the surface.
+``eval`` returns f_r in 1/sr WITHOUT the cosine, linear Rec.709 RGB; ``pdf`` is the
+solid-angle density of ``sample``; ``sample`` returns ``weight = f cos(theta_i) / pdf``.
+
+Arrays have shape ``(n, 3)`` (or ``(3,)`` for one direction; leading dimensions broadcast).
+Results are float32 when every input is float32, float64 otherwise (the library's f64
+reference path). The GIL is released during library calls, and a Material may be used from
+many threads at once.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json as _json
+from ctypes import byref, c_bool, c_void_p
+from typing import Any, NamedTuple, Optional, Union
+
+import numpy as np
+
+from . import _native
+from ._native import (
+    LQ_SAMPLE_DELTA,
+    LQ_SAMPLE_FAILED,
+    LQ_SAMPLE_INVALID_INPUT,
+    abi_version,
+    library_path,
+)
+
+__version__ = _native.lib.lq_version().decode()
+
+__all__ = [
+    "Material",
+    "Sample",
+    "CheckResult",
+    "LacquerError",
+    "NullPointerError",
+    "InvalidJSONError",
+    "InvalidMaterialError",
+    "UnknownNameError",
+    "InvalidArgumentError",
+    "InvalidDirectionError",
+    "InvalidElementError",
+    "PanicError",
+    "models",
+    "presets",
+    "check_model",
+    "abi_version",
+    "library_path",
+    "LQ_SAMPLE_DELTA",
+    "LQ_SAMPLE_FAILED",
+    "LQ_SAMPLE_INVALID_INPUT",
+]
+
+
+# --- errors ------------------------------------------------------------------------------
+
+
+class LacquerError(Exception):
+    """A library call failed. ``status`` is the lq_status code, ``status_name`` its name."""
+
+    def __init__(self, status: int, message: str):
+        self.status = status
+        self.status_name = _native.lib.lq_status_name(status).decode()
+        self.message = message
+        #: For per-element errors: the fully written result (invalid elements are zero).
+        self.result: Any = None
+        super().__init__(f"{self.status_name}: {message}")
+
+
+class NullPointerError(LacquerError):
+    """LQ_ERR_NULL (cannot normally happen through this package)."""
+
+
+class InvalidJSONError(LacquerError, ValueError):
+    """LQ_ERR_INVALID_JSON: not JSON (NaN and Infinity are not JSON either)."""
+
+
+class InvalidMaterialError(LacquerError, ValueError):
+    """LQ_ERR_INVALID_MATERIAL: unknown key, wrong type, value out of range..."""
+
+
+class UnknownNameError(LacquerError, LookupError):
+    """LQ_ERR_UNKNOWN_NAME: no model or preset has this name."""
+
+
+class InvalidArgumentError(LacquerError, ValueError):
+    """LQ_ERR_INVALID_ARGUMENT (or an array shape this package rejects)."""
+
+
+class InvalidDirectionError(LacquerError, ValueError):
+    """LQ_ERR_INVALID_DIRECTION: some directions are not finite or have zero length."""
+
+
+class InvalidElementError(LacquerError, ValueError):
+    """LQ_ERR_INVALID_ELEMENT: some u, uv or footprint values are not finite."""
+
+
+class PanicError(LacquerError, RuntimeError):
+    """LQ_ERR_PANIC: a bug inside the library, caught at its boundary."""
+
+
+_ERRORS = {
+    _native.LQ_ERR_NULL: NullPointerError,
+    _native.LQ_ERR_INVALID_JSON: InvalidJSONError,
+    _native.LQ_ERR_INVALID_MATERIAL: InvalidMaterialError,
+    _native.LQ_ERR_UNKNOWN_NAME: UnknownNameError,
+    _native.LQ_ERR_INVALID_ARGUMENT: InvalidArgumentError,
+    _native.LQ_ERR_INVALID_DIRECTION: InvalidDirectionError,
+    _native.LQ_ERR_INVALID_ELEMENT: InvalidElementError,
+    _native.LQ_ERR_PANIC: PanicError,
+}
+
+_PER_ELEMENT = (_native.LQ_ERR_INVALID_DIRECTION, _native.LQ_ERR_INVALID_ELEMENT)
+
+
+def _error(status: int) -> LacquerError:
+    message = _native.lib.lq_last_error().decode("utf-8", "replace")
+    return _ERRORS.get(status, LacquerError)(status, message)
+
+
+def _check(status: int) -> None:
+    if status != _native.LQ_OK:
+        raise _error(status)
+
+
+# --- results -----------------------------------------------------------------------------
+
+
+class Sample(NamedTuple):
+    """Result of :meth:`Material.sample`."""
+
+    wi: np.ndarray  #: (..., 3) sampled directions toward the light
+    weight: np.ndarray  #: (..., 3) f cos(theta_i) / pdf
+    pdf: np.ndarray  #: (...) solid-angle density; 0 for a failed sample
+    flags: np.ndarray  #: (...) uint32 LQ_SAMPLE_* bits
+
+
+class CheckResult(NamedTuple):
+    """Result of the shipped checks."""
+
+    passed: bool  #: every claimed property held
+    report: dict  #: the full report (verdicts, reciprocity, furnace, chi2, ...)
+
+
+_LEVELS = {"quick": _native.LQ_CHECK_QUICK, "standard": _native.LQ_CHECK_STANDARD}
+
+
+def _level(level: Union[str, int]) -> int:
+    if isinstance(level, str):
+        if level not in _LEVELS:
+            raise InvalidArgumentError(
+                _native.LQ_ERR_INVALID_ARGUMENT, f"check level must be 'quick' or 'standard', not {level!r}"
+            )
+        return _LEVELS[level]
+    return int(level)
+
+
+# --- arrays ------------------------------------------------------------------------------
+
+
+def _shape_error(message: str) -> InvalidArgumentError:
+    return InvalidArgumentError(_native.LQ_ERR_INVALID_ARGUMENT, message)
+
+
+def _vectors(*arrays, names, widths, dtype=None):
+    """Broadcasts (..., k) arrays against each other; returns contiguous (n, k) arrays of one
+    dtype, the leading shape, and the dtype."""
+    arrs = []
+    for a, name, k in zip(arrays, names, widths):
+        a = np.asarray(a)
+        if a.ndim == 0 or a.shape[-1] != k:
+            raise _shape_error(f"`{name}` must have shape (..., {k}), got {a.shape}")
+        if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+            raise _shape_error(f"`{name}` must be numeric, got dtype {a.dtype}")
+        arrs.append(a)
+    if dtype is None:
+        dtype = np.float32 if all(a.dtype == np.float32 for a in arrs) else np.float64
+    try:
+        lead = np.broadcast_shapes(*(a.shape[:-1] for a in arrs))
+    except ValueError:
+        shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(names, arrs))
+        raise _shape_error(f"array shapes do not broadcast: {shapes}") from None
+    out = [
+        np.ascontiguousarray(np.broadcast_to(a, lead + (k,)), dtype=dtype).reshape(-1, k)
+        for a, k in zip(arrs, widths)
+    ]
+    return out, lead, dtype
+
+
+def _ptr(a: Optional[np.ndarray]):
+    if a is None:
+        return None
+    ctype = ctypes.c_float if a.dtype == np.float32 else (ctypes.c_double if a.dtype == np.float64 else ctypes.c_uint32)
+    return a.ctypes.data_as(ctypes.POINTER(ctype))
+
+
+# --- materials ---------------------------------------------------------------------------
+
+
+class Material:
+    """An immutable material from the library.
+
+    ``Material(spec)`` accepts a dict (material JSON as a Python object), a JSON string
+    (starting with ``{``), a preset name, or another Material.
+    """
+
+    __slots__ = ("_handle", "__weakref__")
+
+    def __init__(self, spec: Union[str, bytes, dict, "Material"]):
+        self._handle = None
+        if isinstance(spec, Material):
+            spec = spec.to_json()
+        if isinstance(spec, dict):
+            # NaN/Infinity become the non-JSON tokens NaN/Infinity: the library rejects them.
+            self._create_json(_json.dumps(spec))
+        elif isinstance(spec, (str, bytes)):
+            text = spec.decode("utf-8") if isinstance(spec, bytes) else spec
+            if text.lstrip().startswith("{"):
+                self._create_json(text)
+            else:
+                self._create(_native.lib.lq_material_from_preset, text)
+        else:
+            raise TypeError(
+                f"Material() takes a dict, a JSON string, a preset name or a Material, not {type(spec).__name__}"
+            )
+
+    @classmethod
+    def from_json(cls, text: Union[str, bytes]) -> "Material":
+        """Parses material JSON text (``{"model": ...}`` or ``{"preset": ...}``)."""
+        self = cls.__new__(cls)
+        self._handle = None
+        self._create_json(text)
+        return self
+
+    @classmethod
+    def preset(cls, name: str) -> "Material":
+        """A named preset (see :func:`presets`)."""
+        self = cls.__new__(cls)
+        self._handle = None
+        self._create(_native.lib.lq_material_from_preset, name)
+        return self
+
+    def _create_json(self, text: Union[str, bytes]) -> None:
+        self._create(_native.lib.lq_material_from_json, text)
+
+    def _create(self, fn, text: Union[str, bytes]) -> None:
+        if isinstance(text, str):
+            text = text.encode("utf-8")
+        if b"\0" in text:
+            raise InvalidJSONError(_native.LQ_ERR_INVALID_JSON, "text contains a NUL character")
+        handle = c_void_p()
+        _check(fn(text, byref(handle)))
+        self._handle = handle
+
+    def __del__(self):
+        handle = getattr(self, "_handle", None)
+        if handle is not None and _native is not None and _native.lib is not None:
+            _native.lib.lq_material_free(handle)
+            self._handle = None
+
+    def _h(self) -> c_void_p:
+        if self._handle is None:
+            raise InvalidArgumentError(_native.LQ_ERR_NULL, "Material was not created")
+        return self._handle
+
+    def to_json(self) -> str:
+        """Canonical JSON text: the model and every parameter, defaults included."""
+        out = c_void_p()
+        _check(_native.lib.lq_material_to_json(self._h(), byref(out)))
+        return _native.take_string(out)
+
+    def to_dict(self) -> dict:
+        """:meth:`to_json` parsed."""
+        return _json.loads(self.to_json())
+
+    @property
+    def model(self) -> str:
+        """The model's name."""
+        return self.to_dict()["model"]
+
+    def __repr__(self) -> str:
+        return f"lacquer.Material({self.to_json()})"
+
+    def __reduce__(self):
+        return (Material, (self.to_dict(),))
+
+    # ---- evaluation
+
+    def _finish(self, status: int, result, strict: bool):
+        if status == _native.LQ_OK:
+            return result
+        if status in _PER_ELEMENT and not strict:
+            return result
+        err = _error(status)
+        if status in _PER_ELEMENT:
+            err.result = result
+        raise err
+
+    def _eval_pdf(self, wi, wo, uv, duv, want_f, want_pdf, strict):
+        spatial = uv is not None or duv is not None
+        arrays, names, widths = [wi, wo], ["wi", "wo"], [3, 3]
+        if uv is not None:
+            arrays.append(uv), names.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), names.append("duv"), widths.append(4)
+        vecs, lead, dtype = _vectors(*arrays, names=names, widths=widths, dtype=np.float32 if spatial else None)
+        wi_, wo_ = vecs[0], vecs[1]
+        uv_ = vecs[2] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        n = wi_.shape[0]
+        f = np.zeros((n, 3), dtype) if want_f else None
+        p = np.zeros(n, dtype) if want_pdf else None
+        lib = _native.lib
+        h = self._h()
+        if spatial:
+            if want_f and want_pdf:
+                s = lib.lq_eval_pdf_spatial(h, n, _ptr(wi_), _ptr(wo_), _ptr(uv_), _ptr(duv_), _ptr(f), _ptr(p))
+            elif want_f:
+                s = lib.lq_eval_spatial(h, n, _ptr(wi_), _ptr(wo_), _ptr(uv_), _ptr(duv_), _ptr(f))
+            else:
+                s = lib.lq_pdf_spatial(h, n, _ptr(wi_), _ptr(wo_), _ptr(uv_), _ptr(duv_), _ptr(p))
+        elif dtype == np.float32:
+            if want_f and want_pdf:
+                s = lib.lq_eval_pdf(h, n, _ptr(wi_), _ptr(wo_), _ptr(f), _ptr(p))
+            elif want_f:
+                s = lib.lq_eval(h, n, _ptr(wi_), _ptr(wo_), _ptr(f))
+            else:
+                s = lib.lq_pdf(h, n, _ptr(wi_), _ptr(wo_), _ptr(p))
+        else:
+            if want_f and want_pdf:
+                s = lib.lq_eval_pdf_f64(h, n, _ptr(wi_), _ptr(wo_), _ptr(f), _ptr(p))
+            elif want_f:
+                s = lib.lq_eval_f64(h, n, _ptr(wi_), _ptr(wo_), _ptr(f))
+            else:
+                s = lib.lq_pdf_f64(h, n, _ptr(wi_), _ptr(wo_), _ptr(p))
+        f = f.reshape(lead + (3,)) if f is not None else None
+        p = p.reshape(lead) if p is not None else None
+        result = (f, p) if (want_f and want_pdf) else (f if want_f else p)
+        return self._finish(s, result, strict)
+
+    def eval(self, wi, wo, uv=None, duv=None, *, strict: bool = True) -> np.ndarray:
+        """BRDF values f_r(wi, wo), shape (..., 3).
+
+        ``uv`` (..., 2) and ``duv`` (..., 4: du/dx, dv/dx, du/dy, dv/dy) are the surface
+        position and footprint for spatially varying materials; they select the float32
+        path and currently do not change results (no model is spatially varying yet).
+        A non-finite or zero-length direction raises InvalidDirectionError whose ``result``
+        holds the output (zero there); with ``strict=False`` the output is returned instead.
+        """
+        return self._eval_pdf(wi, wo, uv, duv, True, False, strict)
+
+    def pdf(self, wi, wo, uv=None, duv=None, *, strict: bool = True) -> np.ndarray:
+        """Solid-angle density of :meth:`sample` choosing ``wi`` given ``wo``, shape (...)."""
+        return self._eval_pdf(wi, wo, uv, duv, False, True, strict)
+
+    def eval_pdf(self, wi, wo, uv=None, duv=None, *, strict: bool = True):
+        """``(eval(wi, wo), pdf(wi, wo))`` in one library call."""
+        return self._eval_pdf(wi, wo, uv, duv, True, True, strict)
+
+    def sample(self, wo, u, uv=None, duv=None, *, strict: bool = True) -> Sample:
+        """Importance-samples ``wi`` for each ``wo`` with ``u`` (..., 3) uniform in [0, 1).
+
+        Returns a :class:`Sample` (wi, weight, pdf, flags). A failed sample (e.g. wo below
+        the surface) has pdf 0 and flag LQ_SAMPLE_FAILED; it is not an error.
+        """
+        spatial = uv is not None or duv is not None
+        arrays, names, widths = [wo, u], ["wo", "u"], [3, 3]
+        if uv is not None:
+            arrays.append(uv), names.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), names.append("duv"), widths.append(4)
+        vecs, lead, dtype = _vectors(*arrays, names=names, widths=widths, dtype=np.float32 if spatial else None)
+        wo_, u_ = vecs[0], vecs[1]
+        uv_ = vecs[2] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        n = wo_.shape[0]
+        wi = np.zeros((n, 3), dtype)
+        weight = np.zeros((n, 3), dtype)
+        pdf = np.zeros(n, dtype)
+        flags = np.zeros(n, np.uint32)
+        lib = _native.lib
+        if dtype == np.float32:
+            s = lib.lq_sample_spatial(
+                self._h(), n, _ptr(wo_), _ptr(u_), _ptr(uv_), _ptr(duv_), _ptr(wi), _ptr(weight), _ptr(pdf), _ptr(flags)
+            )
+        else:
+            s = lib.lq_sample_f64(self._h(), n, _ptr(wo_), _ptr(u_), _ptr(wi), _ptr(weight), _ptr(pdf), _ptr(flags))
+        result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
+        return self._finish(s, result, strict)
+
+    def check(self, level: Union[str, int] = "quick") -> CheckResult:
+        """Runs the shipped checks (reciprocity, furnace, chi2, hard cases, precision)."""
+        out = c_void_p()
+        passed = c_bool(False)
+        _check(_native.lib.lq_check_material(self._h(), _level(level), byref(out), byref(passed)))
+        return CheckResult(bool(passed.value), _json.loads(_native.take_string(out)))
+
+
+# --- catalogue ---------------------------------------------------------------------------
+
+
+def models() -> list:
+    """Every registered model: name, summary, reference, claims, params."""
+    out = c_void_p()
+    _check(_native.lib.lq_models_json(byref(out)))
+    return _json.loads(_native.take_string(out))
+
+
+def presets() -> list:
+    """Every preset: name, description, material (full JSON)."""
+    out = c_void_p()
+    _check(_native.lib.lq_presets_json(byref(out)))
+    return _json.loads(_native.take_string(out))
+
+
+def check_model(name: str, level: Union[str, int] = "quick") -> CheckResult:
+    """Runs every check on a registered model (defaults, check sets, random sets, extremes)."""
+    out = c_void_p()
+    passed = c_bool(False)
+    _check(_native.lib.lq_check_model(name.encode("utf-8"), _level(level), byref(out), byref(passed)))
+    return CheckResult(bool(passed.value), _json.loads(_native.take_string(out)))

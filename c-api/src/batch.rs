@@ -1,0 +1,737 @@
+//! Batch evaluation, density and sampling over interleaved arrays, in f32 and f64.
+//!
+//! The adapter only validates and converts: every value comes from `lacquer::Material`.
+//! Per-element policy: an element with a non-finite or zero-length direction (the inputs the
+//! core would silently turn into zero) gets zero outputs and is counted; after the whole
+//! batch the call returns `LQ_ERR_INVALID_DIRECTION` (or `LQ_ERR_INVALID_ELEMENT` for a
+//! non-finite `u`, `uv` or footprint) with the count and the first offender in the message.
+
+use crate::arrays::Batch;
+use crate::material::{lq_material, material};
+use crate::status::{guard, lq_status, Failure};
+use lacquer_core::{Material, Real, Vec3};
+use std::ffi::c_float;
+
+/// `flags` bit: the sample comes from a Dirac delta lobe (`pdf` is then the discrete
+/// probability of choosing that lobe, and MIS should not weight it against light sampling).
+pub const LQ_SAMPLE_DELTA: u32 = 1;
+/// `flags` bit: no sample was produced (wo below the surface, or the sampler rejected `u`):
+/// `wi`, `weight` and `pdf` are 0. This is not an error.
+pub const LQ_SAMPLE_FAILED: u32 = 2;
+/// `flags` bit: the element's inputs were invalid (see `LQ_ERR_INVALID_DIRECTION` and
+/// `LQ_ERR_INVALID_ELEMENT`); outputs are 0.
+pub const LQ_SAMPLE_INVALID_INPUT: u32 = 4;
+
+/// The same test the core applies before treating a direction as usable: a finite, non-zero
+/// squared length (NaN fails both comparisons).
+#[inline(always)]
+fn usable<T: Real>(w: Vec3<T>) -> bool {
+    let l2 = w.length_squared();
+    l2 > T::zero() && l2 <= T::max_value()
+}
+
+/// `x.is_finite()` as one comparison (NaN fails it).
+#[inline(always)]
+fn finite<T: Real>(x: T) -> bool {
+    x.abs() <= T::max_value()
+}
+
+#[inline(always)]
+fn vec3<T: Real>(a: &[T; 3]) -> Vec3<T> {
+    Vec3::new(a[0], a[1], a[2])
+}
+
+/// A number for a message: plain for ordinary magnitudes, scientific for tiny or huge ones.
+fn num<T: Real>(x: T) -> String {
+    let a = x.abs().f64();
+    if x.is_finite() && a != 0.0 && !(1e-4..1e7).contains(&a) {
+        if std::mem::size_of::<T>() == 4 {
+            format!("{:e}", x.f64() as f32) // shortest f32 form, not the widened f64 digits
+        } else {
+            format!("{:e}", x.f64())
+        }
+    } else {
+        format!("{x}")
+    }
+}
+
+/// Counts invalid elements and remembers the first of each kind for the message. Empty
+/// (`None`) in the common case, so the hot path carries and drops nothing.
+#[derive(Default)]
+struct Invalid(Option<Box<InvalidDetail>>);
+
+#[derive(Default)]
+struct InvalidDetail {
+    directions: usize,
+    first_direction: Option<String>,
+    others: usize,
+    first_other: Option<String>,
+}
+
+impl Invalid {
+    #[cold]
+    #[inline(never)]
+    fn direction<T: Real>(&mut self, i: usize, name: &str, w: Vec3<T>) {
+        let d = self.0.get_or_insert_with(Box::default);
+        d.directions += 1;
+        if d.first_direction.is_none() {
+            d.first_direction = Some(format!("element {i}: {name} = [{}, {}, {}]", num(w.x), num(w.y), num(w.z)));
+        }
+    }
+    #[cold]
+    #[inline(never)]
+    fn other<T: Real>(&mut self, i: usize, name: &str, v: &[T]) {
+        let d = self.0.get_or_insert_with(Box::default);
+        d.others += 1;
+        if d.first_other.is_none() {
+            let v: Vec<String> = v.iter().map(|&x| num(x)).collect();
+            d.first_other = Some(format!("element {i}: {name} = [{}]", v.join(", ")));
+        }
+    }
+    #[inline]
+    fn finish(self, n: usize) -> Result<(), Failure> {
+        match self.0 {
+            None => Ok(()),
+            Some(d) => Err(d.failure(n)),
+        }
+    }
+}
+
+impl InvalidDetail {
+    #[cold]
+    fn failure(self, n: usize) -> Failure {
+        let total = self.directions + self.others;
+        let (status, what, first) = if self.directions > 0 {
+            (
+                lq_status::LQ_ERR_INVALID_DIRECTION,
+                "a direction that is not finite or has zero length",
+                self.first_direction,
+            )
+        } else {
+            (lq_status::LQ_ERR_INVALID_ELEMENT, "a non-finite u, uv or footprint value", self.first_other)
+        };
+        let mut msg = format!(
+            "{total} of {n} elements have {what} (first: {}); their outputs were set to 0, the other elements were evaluated",
+            first.unwrap_or_default()
+        );
+        if self.directions > 0 && self.others > 0 {
+            msg.push_str(&format!("; {} more have a non-finite u, uv or footprint value", self.others));
+        }
+        Failure::new(status, msg)
+    }
+}
+
+/// Optional surface position and footprint of each element (see `lq_eval_spatial`).
+struct Spatial<'a, T> {
+    uv: Option<&'a [[T; 2]]>,
+    duv: Option<&'a [[T; 4]]>,
+}
+
+impl<T: Real> Spatial<'_, T> {
+    /// True when element `i`'s position and footprint are finite (or absent).
+    #[inline(always)]
+    fn check(&self, i: usize, bad: &mut Invalid) -> bool {
+        if let Some(uv) = self.uv {
+            if !uv[i].iter().all(|&x| finite(x)) {
+                bad.other(i, "uv", &uv[i]);
+                return false;
+            }
+        }
+        if let Some(duv) = self.duv {
+            if !duv[i].iter().all(|&x| finite(x)) {
+                bad.other(i, "duv", &duv[i]);
+                return false;
+            }
+        }
+        true
+    }
+}
+
+/// True when element `i`'s directions and spatial inputs are valid; otherwise records why
+/// (the element's outputs are then zero).
+#[inline(always)]
+fn valid<T: Real>(i: usize, a: Vec3<T>, o: Vec3<T>, spatial: &Spatial<T>, bad: &mut Invalid) -> bool {
+    if !usable(a) {
+        bad.direction(i, "wi", a);
+        false
+    } else if !usable(o) {
+        bad.direction(i, "wo", o);
+        false
+    } else {
+        spatial.check(i, bad)
+    }
+}
+
+/// eval and/or pdf over a batch. `uv`/`duv` are validated and, as no model in the core is
+/// spatially varying yet, not otherwise used (see `lq_eval_spatial`).
+#[allow(clippy::too_many_arguments)]
+unsafe fn eval_pdf_impl<T: Real>(
+    m: *const lq_material,
+    n: usize,
+    wi: *const T,
+    wo: *const T,
+    uv: *const T,
+    duv: *const T,
+    f_rgb: Option<*mut T>,
+    pdf: Option<*mut T>,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract of the exported caller.
+    let m: &Material = unsafe { material(m) }?;
+    if n == 0 {
+        return Ok(());
+    }
+    let mut b = Batch::<6>::new(n);
+    let wi = b.input::<T, 3>("wi", wi)?;
+    let wo = b.input::<T, 3>("wo", wo)?;
+    let uv = b.optional_input::<T, 2>("uv", uv)?;
+    let duv = b.optional_input::<T, 4>("duv", duv)?;
+    if duv.is_some() && uv.is_none() {
+        return Err(Failure::invalid("`duv` (footprint) was given without `uv` (position)"));
+    }
+    // A wanted output is required; an unwanted one takes its slot as an empty span.
+    let f_rgb = match f_rgb {
+        Some(p) => Some(b.output::<T, 3>("f_rgb", p)?),
+        None => b.optional_output::<T, 3>("f_rgb", std::ptr::null_mut())?,
+    };
+    let pdf = match pdf {
+        Some(p) => Some(b.output::<T, 1>("pdf", p)?),
+        None => b.optional_output::<T, 1>("pdf", std::ptr::null_mut())?,
+    };
+    b.check_overlaps()?;
+    // SAFETY: every array validated (non-NULL, aligned, sized, outputs disjoint); lengths are
+    // the caller's contract.
+    let (wi, wo) = unsafe { (wi.slice(), wo.slice()) };
+    let spatial = unsafe { Spatial { uv: uv.map(|a| a.slice()), duv: duv.map(|a| a.slice()) } };
+    let f_rgb = f_rgb.map(|a| unsafe { a.slice() });
+    let pdf = pdf.map(|a| unsafe { a.slice() });
+
+    let mut bad = Invalid::default();
+    let pairs = wi.iter().zip(wo).enumerate();
+    match (f_rgb, pdf) {
+        (Some(f), None) => {
+            for ((i, (a, o)), out) in pairs.zip(f) {
+                let (a, o) = (vec3(a), vec3(o));
+                *out = if valid(i, a, o, &spatial, &mut bad) { m.eval(a, o).to_array() } else { [T::zero(); 3] };
+            }
+        }
+        (None, Some(p)) => {
+            for ((i, (a, o)), out) in pairs.zip(p) {
+                let (a, o) = (vec3(a), vec3(o));
+                out[0] = if valid(i, a, o, &spatial, &mut bad) { m.pdf(a, o) } else { T::zero() };
+            }
+        }
+        (Some(f), Some(p)) => {
+            for (((i, (a, o)), f_out), p_out) in pairs.zip(f).zip(p) {
+                let (a, o) = (vec3(a), vec3(o));
+                (*f_out, p_out[0]) = if valid(i, a, o, &spatial, &mut bad) {
+                    (m.eval(a, o).to_array(), m.pdf(a, o))
+                } else {
+                    ([T::zero(); 3], T::zero())
+                };
+            }
+        }
+        (None, None) => {}
+    }
+    bad.finish(n)
+}
+
+/// Sampling over a batch; `flags` is optional.
+#[allow(clippy::too_many_arguments)]
+unsafe fn sample_impl<T: Real>(
+    m: *const lq_material,
+    n: usize,
+    wo: *const T,
+    u: *const T,
+    spatial: (*const T, *const T),
+    wi: *mut T,
+    weight_rgb: *mut T,
+    pdf: *mut T,
+    flags: *mut u32,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract of the exported caller.
+    let m: &Material = unsafe { material(m) }?;
+    if n == 0 {
+        return Ok(());
+    }
+    let mut b = Batch::<8>::new(n);
+    let wo = b.input::<T, 3>("wo", wo)?;
+    let u = b.input::<T, 3>("u", u)?;
+    let uv = b.optional_input::<T, 2>("uv", spatial.0)?;
+    let duv = b.optional_input::<T, 4>("duv", spatial.1)?;
+    if duv.is_some() && uv.is_none() {
+        return Err(Failure::invalid("`duv` (footprint) was given without `uv` (position)"));
+    }
+    let wi = b.output::<T, 3>("wi", wi)?;
+    let weight = b.output::<T, 3>("weight_rgb", weight_rgb)?;
+    let pdf = b.output::<T, 1>("pdf", pdf)?;
+    let flags = b.optional_output::<u32, 1>("flags", flags)?;
+    b.check_overlaps()?;
+    // SAFETY: as in eval_pdf_impl.
+    let (wo, u) = unsafe { (wo.slice(), u.slice()) };
+    let spatial = unsafe { Spatial { uv: uv.map(|a| a.slice()), duv: duv.map(|a| a.slice()) } };
+    let (wi, weight, pdf) = unsafe { (wi.slice(), weight.slice(), pdf.slice()) };
+    let mut flags = flags.map(|a| unsafe { a.slice() });
+
+    let zero = [T::zero(); 3];
+    let mut bad = Invalid::default();
+    let outputs = wi.iter_mut().zip(weight.iter_mut()).zip(pdf.iter_mut());
+    for (i, ((o, uu), ((wi_out, w_out), p_out))) in wo.iter().zip(u).zip(outputs).enumerate() {
+        let o = vec3(o);
+        let ok = if !usable(o) {
+            bad.direction(i, "wo", o);
+            false
+        } else if !uu.iter().all(|&x| finite(x)) {
+            bad.other(i, "u", uu);
+            false
+        } else {
+            spatial.check(i, &mut bad)
+        };
+        let s = if ok { m.sample(o, *uu) } else { None };
+        let flag = match &s {
+            Some(s) => {
+                *wi_out = [s.wi.x, s.wi.y, s.wi.z];
+                *w_out = s.weight.to_array();
+                p_out[0] = s.pdf;
+                if s.delta {
+                    LQ_SAMPLE_DELTA
+                } else {
+                    0
+                }
+            }
+            None => {
+                (*wi_out, *w_out, p_out[0]) = (zero, zero, T::zero());
+                if ok {
+                    LQ_SAMPLE_FAILED
+                } else {
+                    LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT
+                }
+            }
+        };
+        if let Some(fl) = flags.as_deref_mut() {
+            fl[i] = [flag];
+        }
+    }
+    bad.finish(n)
+}
+
+const NO_F32: *const c_float = std::ptr::null();
+const NO_F64: *const f64 = std::ptr::null();
+
+// ---------------------------------------------------------------------------------------
+// f32 (the contract's functions)
+
+/// Evaluates the BRDF `f_r(wi, wo)` (1/sr, cosine NOT included, linear Rec.709 RGB) for `n`
+/// direction pairs.
+///
+/// `wi`, `wo`: 3n floats (x, y, z per element) in the local frame (z = normal, x = tangent),
+/// pointing away from the surface; they need not be exactly unit length (they are
+/// normalised). `f_rgb`: 3n floats written. Below-horizon directions give 0 (not an error).
+///
+/// Returns LQ_OK; LQ_ERR_NULL / LQ_ERR_INVALID_ARGUMENT with nothing written; or
+/// LQ_ERR_INVALID_DIRECTION after writing every element, the invalid ones as 0.
+/// `n == 0` is a no-op returning LQ_OK (arrays may then be NULL). Each array must hold
+/// `n` elements: the library cannot check lengths, a short array is undefined behaviour.
+///
+/// # Safety
+/// `m` is NULL or a live handle; each non-NULL array holds `n` elements, suitably aligned.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, Some(f_rgb), None) })
+}
+
+/// The solid-angle density (1/sr) with which `lq_sample` picks `wi` given `wo`; `pdf`: n
+/// floats written. Same arrays, statuses and per-element policy as `lq_eval`.
+///
+/// # Safety
+/// As `lq_eval`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_pdf(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, None, Some(pdf)) })
+}
+
+/// `lq_eval` and `lq_pdf` in one pass (what a MIS integrator needs).
+///
+/// # Safety
+/// As `lq_eval`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_pdf(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F32, NO_F32, Some(f_rgb), Some(pdf)) })
+}
+
+/// Importance-samples `wi` for each `wo`.
+///
+/// `u`: 3n uniform numbers in [0, 1) (first picks a lobe, the other two the direction;
+/// values outside are clamped into [0, 1)). Writes `wi` (3n), `weight_rgb` (3n) =
+/// f_r(wi, wo)·cos θi / pdf, and `pdf` (n). A failed sample (e.g. wo below the surface) is
+/// not an error: it has pdf = 0, weight = 0 and wi = 0. A non-finite or zero-length `wo`
+/// gives LQ_ERR_INVALID_DIRECTION, a non-finite `u` LQ_ERR_INVALID_ELEMENT, both after
+/// writing every element (the invalid ones as failed samples).
+///
+/// # Safety
+/// As `lq_eval`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample(
+    m: *const lq_material,
+    n: usize,
+    wo: *const c_float,
+    u: *const c_float,
+    wi: *mut c_float,
+    weight_rgb: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { sample_impl(m, n, wo, u, (NO_F32, NO_F32), wi, weight_rgb, pdf, std::ptr::null_mut()) })
+}
+
+// ---------------------------------------------------------------------------------------
+// f64: the reference path (same semantics, double arrays)
+
+/// `lq_eval` in double precision (the core's reference path; the f32 path agrees to about
+/// 1e-4 relative, see `lacquer check`'s precision figure).
+///
+/// # Safety
+/// As `lq_eval`, with 8-byte aligned double arrays.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_f64(
+    m: *const lq_material,
+    n: usize,
+    wi: *const f64,
+    wo: *const f64,
+    f_rgb: *mut f64,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, Some(f_rgb), None) })
+}
+
+/// `lq_pdf` in double precision.
+///
+/// # Safety
+/// As `lq_eval_f64`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_pdf_f64(
+    m: *const lq_material,
+    n: usize,
+    wi: *const f64,
+    wo: *const f64,
+    pdf: *mut f64,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, None, Some(pdf)) })
+}
+
+/// `lq_eval_pdf` in double precision.
+///
+/// # Safety
+/// As `lq_eval_f64`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_pdf_f64(
+    m: *const lq_material,
+    n: usize,
+    wi: *const f64,
+    wo: *const f64,
+    f_rgb: *mut f64,
+    pdf: *mut f64,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, NO_F64, NO_F64, Some(f_rgb), Some(pdf)) })
+}
+
+/// `lq_sample` in double precision; `flags` (n values, may be NULL) as in
+/// `lq_sample_spatial`.
+///
+/// # Safety
+/// As `lq_eval_f64`; `flags` is NULL or holds n 4-byte aligned values.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample_f64(
+    m: *const lq_material,
+    n: usize,
+    wo: *const f64,
+    u: *const f64,
+    wi: *mut f64,
+    weight_rgb: *mut f64,
+    pdf: *mut f64,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| unsafe { sample_impl(m, n, wo, u, (NO_F64, NO_F64), wi, weight_rgb, pdf, flags) })
+}
+
+// ---------------------------------------------------------------------------------------
+// Spatially varying inputs (sparkle): surface position and footprint per element
+
+/// `lq_eval` with a surface position and footprint per element, for spatially varying
+/// materials (sparkle), per the contract's "Spatially varying effects".
+///
+/// `uv`: 2n floats (u, v) or NULL; `duv`: 4n floats (du/dx, dv/dx, du/dy, dv/dy: the pixel
+/// footprint in uv) or NULL. NULL `uv` means "no position": the mean lobe (footprint → ∞).
+/// NULL `duv` with a `uv` also means the mean lobe until a model defines a point query;
+/// `duv` without `uv` is LQ_ERR_INVALID_ARGUMENT. A non-finite uv/duv value gives
+/// LQ_ERR_INVALID_ELEMENT for that element (outputs 0).
+///
+/// Current behaviour: no model in the core is spatially varying yet, so after validation
+/// uv and duv do not change the result, which equals `lq_eval`. The signature is stable:
+/// when a spatial model lands, these values are passed to it unchanged.
+///
+/// # Safety
+/// As `lq_eval`; `uv`/`duv` are NULL or hold 2n / 4n floats.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_spatial(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    f_rgb: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, Some(f_rgb), None) })
+}
+
+/// `lq_pdf` with surface position and footprint (see `lq_eval_spatial`).
+///
+/// # Safety
+/// As `lq_eval_spatial`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_pdf_spatial(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, None, Some(pdf)) })
+}
+
+/// `lq_eval_pdf` with surface position and footprint (see `lq_eval_spatial`).
+///
+/// # Safety
+/// As `lq_eval_spatial`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_pdf_spatial(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    f_rgb: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_impl(m, n, wi, wo, uv, duv, Some(f_rgb), Some(pdf)) })
+}
+
+/// `lq_sample` with surface position and footprint (see `lq_eval_spatial`) and per-element
+/// `flags` (n values, may be NULL): a combination of LQ_SAMPLE_DELTA, LQ_SAMPLE_FAILED and
+/// LQ_SAMPLE_INVALID_INPUT. With `uv = duv = NULL` this is `lq_sample` plus flags.
+///
+/// # Safety
+/// As `lq_eval_spatial`; `flags` is NULL or holds n 4-byte aligned values.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample_spatial(
+    m: *const lq_material,
+    n: usize,
+    wo: *const c_float,
+    u: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    wi: *mut c_float,
+    weight_rgb: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| unsafe { sample_impl(m, n, wo, u, (uv, duv), wi, weight_rgb, pdf, flags) })
+}
+
+// ---------------------------------------------------------------------------------------
+// One element: the cheap path for scalar renderers (one shading point per call)
+
+/// Checks one pointer to `K` values of `T` (NULL, alignment) without reading it.
+#[inline(always)]
+fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
+    if p.is_null() {
+        return Err(Failure::null(name));
+    }
+    if (p as usize) % std::mem::align_of::<T>() != 0 {
+        return Err(Failure::invalid(format!(
+            "array `{name}` at {:#x} is not aligned to {} bytes",
+            p as usize,
+            std::mem::align_of::<T>()
+        )));
+    }
+    Ok(())
+}
+
+/// Single-element eval and/or pdf. Inputs are read before outputs are written, through raw
+/// pointers: arrays may overlap (in place is fine), so no overlap check is needed.
+unsafe fn one_eval_pdf(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: Option<*mut c_float>,
+    pdf: Option<*mut c_float>,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract of the exported caller.
+    let m: &Material = unsafe { material(m) }?;
+    check_ptr("wi", wi)?;
+    check_ptr("wo", wo)?;
+    if let Some(f) = f_rgb {
+        check_ptr("f_rgb", f.cast_const())?;
+    }
+    if let Some(p) = pdf {
+        check_ptr("pdf", p.cast_const())?;
+    }
+    // SAFETY: non-NULL and aligned; 3 readable floats each by the caller's contract.
+    let (a, o) = unsafe { (vec3(&wi.cast::<[c_float; 3]>().read()), vec3(&wo.cast::<[c_float; 3]>().read())) };
+    let mut bad = Invalid::default();
+    let ok = valid(0, a, o, &Spatial { uv: None, duv: None }, &mut bad);
+    // SAFETY: non-NULL, aligned, writable by the caller's contract; raw writes, no references.
+    if let Some(f) = f_rgb {
+        let v = if ok { m.eval(a, o).to_array() } else { [0.0; 3] };
+        unsafe { f.cast::<[c_float; 3]>().write(v) };
+    }
+    if let Some(p) = pdf {
+        let v = if ok { m.pdf(a, o) } else { 0.0 };
+        unsafe { p.write(v) };
+    }
+    bad.finish(1)
+}
+
+/// `lq_eval` for one element: `wi`, `wo` and `f_rgb` point to 3 floats each. Cheaper per
+/// call than `lq_eval` with n = 1 (no batch validation); the arrays may overlap, as inputs
+/// are read before the output is written. Same statuses and per-element policy.
+///
+/// # Safety
+/// `m` is NULL or a live handle; each non-NULL pointer points to 3 floats, 4-byte aligned.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), None) })
+}
+
+/// `lq_pdf` for one element (`pdf` points to 1 float); see `lq_eval_one`.
+///
+/// # Safety
+/// As `lq_eval_one`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_pdf_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, None, Some(pdf)) })
+}
+
+/// `lq_eval_pdf` for one element; see `lq_eval_one`.
+///
+/// # Safety
+/// As `lq_eval_one`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_pdf_one(
+    m: *const lq_material,
+    wi: *const c_float,
+    wo: *const c_float,
+    f_rgb: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), Some(pdf)) })
+}
+
+/// `lq_sample_spatial` without uv for one element: `wo`, `u`, `wi`, `weight_rgb` point to 3
+/// floats, `pdf` to 1, `flags` to 1 `uint32_t` or is NULL. Inputs are read before outputs are
+/// written, so the arrays may overlap. Same statuses and per-element policy as `lq_sample`.
+///
+/// # Safety
+/// As `lq_eval_one`; `flags` is NULL or points to one 4-byte aligned `uint32_t`.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample_one(
+    m: *const lq_material,
+    wo: *const c_float,
+    u: *const c_float,
+    wi: *mut c_float,
+    weight_rgb: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: handle contract above.
+        let m: &Material = unsafe { material(m) }?;
+        check_ptr("wo", wo)?;
+        check_ptr("u", u)?;
+        check_ptr("wi", wi.cast_const())?;
+        check_ptr("weight_rgb", weight_rgb.cast_const())?;
+        check_ptr("pdf", pdf.cast_const())?;
+        if !flags.is_null() {
+            check_ptr("flags", flags.cast_const())?;
+        }
+        // SAFETY: checked non-NULL and aligned; sizes by the caller's contract.
+        let (o, uu) = unsafe { (vec3(&wo.cast::<[c_float; 3]>().read()), u.cast::<[c_float; 3]>().read()) };
+        let mut bad = Invalid::default();
+        let ok = if !usable(o) {
+            bad.direction(0, "wo", o);
+            false
+        } else if !uu.iter().all(|&x| finite(x)) {
+            bad.other(0, "u", &uu);
+            false
+        } else {
+            true
+        };
+        let (w, f, p, flag) = match if ok { m.sample(o, uu) } else { None } {
+            Some(s) => {
+                ([s.wi.x, s.wi.y, s.wi.z], s.weight.to_array(), s.pdf, if s.delta { LQ_SAMPLE_DELTA } else { 0 })
+            }
+            None => (
+                [0.0; 3],
+                [0.0; 3],
+                0.0,
+                if ok { LQ_SAMPLE_FAILED } else { LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT },
+            ),
+        };
+        // SAFETY: checked non-NULL and aligned; raw writes, so overlapping arrays are fine.
+        unsafe {
+            wi.cast::<[c_float; 3]>().write(w);
+            weight_rgb.cast::<[c_float; 3]>().write(f);
+            pdf.write(p);
+            if !flags.is_null() {
+                flags.write(flag);
+            }
+        }
+        bad.finish(1)
+    })
+}

@@ -1,0 +1,444 @@
+//! The ABI gives exactly what the core gives (it owns no physics), for every registered
+//! model, in f32 and f64, for eval, pdf, eval_pdf, sample and the spatial variants.
+
+use super::*;
+use lacquer_core::rng::Pcg32;
+use lacquer_core::{models, presets, Material, Real, Vec3};
+use lq_status::*;
+
+/// Test inputs: mostly upper-hemisphere directions, some below the horizon and some not
+/// unit length, as a renderer would pass them.
+pub(crate) fn inputs(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut rng = Pcg32::new(seed, 7);
+    let dir = |rng: &mut Pcg32, k: usize| -> [f64; 3] {
+        let w = lacquer_core::sampling::uniform_hemisphere(rng.uniform(), rng.uniform());
+        match k % 11 {
+            3 => [w.x, w.y, -w.z],                  // below the horizon
+            7 => [2.5 * w.x, 2.5 * w.y, 2.5 * w.z], // not unit length
+            _ => [w.x, w.y, w.z],
+        }
+    };
+    let mut wi = Vec::with_capacity(3 * n);
+    let mut wo = Vec::with_capacity(3 * n);
+    let mut u = Vec::with_capacity(3 * n);
+    for k in 0..n {
+        wi.extend(dir(&mut rng, k));
+        wo.extend(dir(&mut rng, k + 5));
+        u.extend(rng.uniform3());
+    }
+    (wi, wo, u)
+}
+
+fn v<T: Real>(a: &[T], i: usize) -> Vec3<T> {
+    Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2])
+}
+
+fn cast<T: Real>(a: &[f64]) -> Vec<T> {
+    a.iter().map(|&x| T::of(x)).collect()
+}
+
+/// The core's own answers for a batch.
+struct Expected<T> {
+    f: Vec<T>,
+    pdf: Vec<T>,
+    s_wi: Vec<T>,
+    s_weight: Vec<T>,
+    s_pdf: Vec<T>,
+    s_flags: Vec<u32>,
+}
+
+fn expected<T: Real>(m: &Material, wi: &[T], wo: &[T], u: &[T]) -> Expected<T> {
+    let n = wi.len() / 3;
+    let mut e = Expected { f: vec![], pdf: vec![], s_wi: vec![], s_weight: vec![], s_pdf: vec![], s_flags: vec![] };
+    for i in 0..n {
+        let f = m.eval(v(wi, i), v(wo, i));
+        e.f.extend(f.to_array());
+        e.pdf.push(m.pdf(v(wi, i), v(wo, i)));
+        match m.sample(v(wo, i), [u[3 * i], u[3 * i + 1], u[3 * i + 2]]) {
+            Some(s) => {
+                e.s_wi.extend([s.wi.x, s.wi.y, s.wi.z]);
+                e.s_weight.extend(s.weight.to_array());
+                e.s_pdf.push(s.pdf);
+                e.s_flags.push(if s.delta { LQ_SAMPLE_DELTA } else { 0 });
+            }
+            None => {
+                e.s_wi.extend([T::zero(); 3]);
+                e.s_weight.extend([T::zero(); 3]);
+                e.s_pdf.push(T::zero());
+                e.s_flags.push(LQ_SAMPLE_FAILED);
+            }
+        }
+    }
+    e
+}
+
+fn bits<T: Real>(a: &[T]) -> Vec<u64> {
+    a.iter().map(|x| x.f64().to_bits()).collect()
+}
+
+#[test]
+fn every_model_matches_the_core_bit_for_bit() {
+    let n = 2000;
+    let (wi, wo, u) = inputs(n, 3);
+    for info in models::all() {
+        let core = Material::default_of(info).expect("defaults build");
+        let json = core.to_json().to_string();
+        let m = material(&json);
+
+        // f32
+        let (wi32, wo32, u32_): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+        let e = expected(&core, &wi32, &wo32, &u32_);
+        let mut f = vec![0f32; 3 * n];
+        let mut p = vec![0f32; n];
+        let (mut f2, mut p2) = (vec![0f32; 3 * n], vec![0f32; n]);
+        let (mut swi, mut sw, mut sp, mut fl) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n], vec![9u32; n]);
+        unsafe {
+            assert_eq!(lq_eval(m, n, wi32.as_ptr(), wo32.as_ptr(), f.as_mut_ptr()), LQ_OK);
+            assert_eq!(lq_pdf(m, n, wi32.as_ptr(), wo32.as_ptr(), p.as_mut_ptr()), LQ_OK);
+            let s = lq_eval_pdf(m, n, wi32.as_ptr(), wo32.as_ptr(), f2.as_mut_ptr(), p2.as_mut_ptr());
+            assert_eq!(s, LQ_OK);
+            let s = lq_sample_spatial(
+                m,
+                n,
+                wo32.as_ptr(),
+                u32_.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                swi.as_mut_ptr(),
+                sw.as_mut_ptr(),
+                sp.as_mut_ptr(),
+                fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+        }
+        assert_eq!(bits(&f), bits(&e.f), "{}: lq_eval", info.name);
+        assert_eq!(bits(&p), bits(&e.pdf), "{}: lq_pdf", info.name);
+        assert_eq!(bits(&f2), bits(&e.f), "{}: lq_eval_pdf f", info.name);
+        assert_eq!(bits(&p2), bits(&e.pdf), "{}: lq_eval_pdf pdf", info.name);
+        assert_eq!(bits(&swi), bits(&e.s_wi), "{}: sample wi", info.name);
+        assert_eq!(bits(&sw), bits(&e.s_weight), "{}: sample weight", info.name);
+        assert_eq!(bits(&sp), bits(&e.s_pdf), "{}: sample pdf", info.name);
+        assert_eq!(fl, e.s_flags, "{}: sample flags", info.name);
+        // The plain lq_sample agrees with the flagged one.
+        let (mut swi2, mut sw2, mut sp2) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n]);
+        let s = unsafe {
+            lq_sample(m, n, wo32.as_ptr(), u32_.as_ptr(), swi2.as_mut_ptr(), sw2.as_mut_ptr(), sp2.as_mut_ptr())
+        };
+        assert_eq!(s, LQ_OK);
+        assert_eq!((bits(&swi2), bits(&sw2), bits(&sp2)), (bits(&swi), bits(&sw), bits(&sp)));
+
+        // f64
+        let e = expected(&core, &wi, &wo, &u);
+        let mut f = vec![0f64; 3 * n];
+        let mut p = vec![0f64; n];
+        let (mut f2, mut p2) = (vec![0f64; 3 * n], vec![0f64; n]);
+        let (mut swi, mut sw, mut sp, mut fl) = (vec![0f64; 3 * n], vec![0f64; 3 * n], vec![0f64; n], vec![9u32; n]);
+        unsafe {
+            assert_eq!(lq_eval_f64(m, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr()), LQ_OK);
+            assert_eq!(lq_pdf_f64(m, n, wi.as_ptr(), wo.as_ptr(), p.as_mut_ptr()), LQ_OK);
+            let s = lq_eval_pdf_f64(m, n, wi.as_ptr(), wo.as_ptr(), f2.as_mut_ptr(), p2.as_mut_ptr());
+            assert_eq!(s, LQ_OK);
+            let s = lq_sample_f64(
+                m,
+                n,
+                wo.as_ptr(),
+                u.as_ptr(),
+                swi.as_mut_ptr(),
+                sw.as_mut_ptr(),
+                sp.as_mut_ptr(),
+                fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+        }
+        assert_eq!(bits(&f), bits(&e.f), "{}: lq_eval_f64", info.name);
+        assert_eq!(bits(&p), bits(&e.pdf), "{}: lq_pdf_f64", info.name);
+        assert_eq!(bits(&f2), bits(&e.f));
+        assert_eq!(bits(&p2), bits(&e.pdf));
+        assert_eq!(bits(&swi), bits(&e.s_wi), "{}: lq_sample_f64 wi", info.name);
+        assert_eq!(bits(&sw), bits(&e.s_weight));
+        assert_eq!(bits(&sp), bits(&e.s_pdf));
+        assert_eq!(fl, e.s_flags);
+        unsafe { lq_material_free(m) };
+    }
+}
+
+#[test]
+fn spatial_inputs_are_accepted_and_currently_do_not_change_results() {
+    let n = 500;
+    let (wi, wo, u) = inputs(n, 11);
+    let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+    let uv: Vec<f32> = (0..2 * n).map(|k| (k as f32 * 0.37).fract()).collect();
+    let duv: Vec<f32> = (0..4 * n).map(|k| 1e-3 * (k % 5) as f32).collect();
+    for info in models::all() {
+        let m = material(&format!("{{\"model\": \"{}\"}}", info.name));
+        let (mut f, mut f_s) = (vec![0f32; 3 * n], vec![1f32; 3 * n]);
+        let (mut p, mut p_s, mut p_s2) = (vec![0f32; n], vec![1f32; n], vec![1f32; n]);
+        let mut f_s2 = vec![1f32; 3 * n];
+        unsafe {
+            assert_eq!(lq_eval_pdf(m, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), p.as_mut_ptr()), LQ_OK);
+            let s = lq_eval_spatial(m, n, wi.as_ptr(), wo.as_ptr(), uv.as_ptr(), duv.as_ptr(), f_s.as_mut_ptr());
+            assert_eq!(s, LQ_OK);
+            let s = lq_pdf_spatial(m, n, wi.as_ptr(), wo.as_ptr(), uv.as_ptr(), std::ptr::null(), p_s.as_mut_ptr());
+            assert_eq!(s, LQ_OK);
+            let s = lq_eval_pdf_spatial(
+                m,
+                n,
+                wi.as_ptr(),
+                wo.as_ptr(),
+                uv.as_ptr(),
+                duv.as_ptr(),
+                f_s2.as_mut_ptr(),
+                p_s2.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+        }
+        assert_eq!(bits(&f), bits(&f_s));
+        assert_eq!(bits(&f), bits(&f_s2));
+        assert_eq!(bits(&p), bits(&p_s));
+        assert_eq!(bits(&p), bits(&p_s2));
+        let mut out = [vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n]];
+        let mut out_s = [vec![1f32; 3 * n], vec![1f32; 3 * n], vec![1f32; n]];
+        unsafe {
+            let [a, b, c] = &mut out;
+            assert_eq!(lq_sample(m, n, wo.as_ptr(), u.as_ptr(), a.as_mut_ptr(), b.as_mut_ptr(), c.as_mut_ptr()), LQ_OK);
+            let [a, b, c] = &mut out_s;
+            let s = lq_sample_spatial(
+                m,
+                n,
+                wo.as_ptr(),
+                u.as_ptr(),
+                uv.as_ptr(),
+                duv.as_ptr(),
+                a.as_mut_ptr(),
+                b.as_mut_ptr(),
+                c.as_mut_ptr(),
+                std::ptr::null_mut(),
+            );
+            assert_eq!(s, LQ_OK);
+            lq_material_free(m);
+        }
+        for k in 0..3 {
+            assert_eq!(bits(&out[k]), bits(&out_s[k]));
+        }
+    }
+}
+
+#[test]
+fn lambert_closed_form_through_the_abi() {
+    // f = ρ/π and pdf = cos θi/π for Lambert (closed forms, not computed by the code).
+    let m = material(r#"{"model": "lambert", "albedo": [0.8, 0.5, 0.25]}"#);
+    let wi = [0.0f64, 0.6, 0.8];
+    let wo = [0.0f64, 0.0, 1.0];
+    let mut f = [0f64; 3];
+    let mut p = [0f64; 1];
+    unsafe {
+        assert_eq!(lq_eval_pdf_f64(m, 1, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), p.as_mut_ptr()), LQ_OK);
+        lq_material_free(m);
+    }
+    let pi = std::f64::consts::PI;
+    for (got, rho) in f.iter().zip([0.8, 0.5, 0.25]) {
+        assert!((got - rho / pi).abs() < 1e-15, "{got}");
+    }
+    assert!((p[0] - 0.8 / pi).abs() < 1e-15);
+}
+
+#[test]
+fn versions_names_and_last_error() {
+    assert_eq!(lq_abi_version(), LQ_ABI_VERSION);
+    assert_eq!(LQ_ABI_VERSION >> 16, LQ_ABI_VERSION_MAJOR);
+    assert_eq!(LQ_ABI_VERSION & 0xffff, LQ_ABI_VERSION_MINOR);
+    let v = unsafe { CStr::from_ptr(lq_version()) }.to_str().unwrap();
+    assert_eq!(v, env!("CARGO_PKG_VERSION"));
+    for s in crate::status::ALL_STATUSES {
+        let name = unsafe { CStr::from_ptr(lq_status_name(s as i32)) };
+        assert_eq!(name, s.name());
+    }
+    // A failure sets the message; the next successful call clears it.
+    let mut m = std::ptr::null_mut();
+    assert_eq!(unsafe { lq_material_from_json(c"{".as_ptr(), &mut m) }, LQ_ERR_INVALID_JSON);
+    assert!(last_error().starts_with("invalid JSON"), "{}", last_error());
+    // lq_last_error itself does not clear it.
+    assert!(!last_error().is_empty());
+    let m = material(r#"{"model": "lambert"}"#);
+    assert_eq!(last_error(), "");
+    unsafe { lq_material_free(m) };
+}
+
+#[test]
+fn json_round_trip_presets_and_catalog() {
+    for info in models::all() {
+        let m = material(&format!("{{\"model\": \"{}\"}}", info.name));
+        let mut out = std::ptr::null_mut();
+        assert_eq!(unsafe { lq_material_to_json(m, &mut out) }, LQ_OK);
+        let canonical = take_string(out);
+        let m2 = material(&canonical);
+        let mut out2 = std::ptr::null_mut();
+        assert_eq!(unsafe { lq_material_to_json(m2, &mut out2) }, LQ_OK);
+        assert_eq!(take_string(out2), canonical);
+        let v: serde_json::Value = serde_json::from_str(&canonical).unwrap();
+        assert_eq!(v["model"], info.name);
+        unsafe {
+            lq_material_free(m);
+            lq_material_free(m2);
+        }
+    }
+
+    let mut out = std::ptr::null_mut();
+    assert_eq!(unsafe { lq_models_json(&mut out) }, LQ_OK);
+    let list: Vec<serde_json::Value> = serde_json::from_str(&take_string(out)).unwrap();
+    let names: Vec<&str> = list.iter().map(|m| m["name"].as_str().unwrap()).collect();
+    let registry: Vec<&str> = models::all().iter().map(|m| m.name).collect();
+    assert_eq!(names, registry);
+    for m in &list {
+        for key in ["summary", "reference", "claims", "params"] {
+            assert!(m.get(key).is_some(), "{key} missing from {m}");
+        }
+        assert!(m["claims"]["reciprocal"].is_boolean());
+    }
+
+    let mut out = std::ptr::null_mut();
+    assert_eq!(unsafe { lq_presets_json(&mut out) }, LQ_OK);
+    let list: Vec<serde_json::Value> = serde_json::from_str(&take_string(out)).unwrap();
+    assert_eq!(list.len(), presets::PRESETS.len());
+    for (p, entry) in presets::PRESETS.iter().zip(&list) {
+        assert_eq!(entry["name"], p.name);
+        assert!(entry["material"]["model"].is_string(), "{entry}");
+        // By name and through {"preset": ...}: the same material.
+        let name = CString::new(p.name).unwrap();
+        let mut a = std::ptr::null_mut();
+        assert_eq!(unsafe { lq_material_from_preset(name.as_ptr(), &mut a) }, LQ_OK);
+        let b = material(&format!("{{\"preset\": \"{}\"}}", p.name));
+        let (mut ja, mut jb) = (std::ptr::null_mut(), std::ptr::null_mut());
+        unsafe {
+            assert_eq!(lq_material_to_json(a, &mut ja), LQ_OK);
+            assert_eq!(lq_material_to_json(b, &mut jb), LQ_OK);
+            lq_material_free(a);
+            lq_material_free(b);
+        }
+        let (ja, jb) = (take_string(ja), take_string(jb));
+        assert_eq!(ja, jb);
+        assert_eq!(serde_json::from_str::<serde_json::Value>(&ja).unwrap(), entry["material"]);
+    }
+}
+
+#[test]
+fn checks_through_the_abi() {
+    let m = material(r#"{"model": "lambert", "albedo": 0.9}"#);
+    let mut report = std::ptr::null_mut();
+    let mut passed = false;
+    let s = unsafe { lq_check_material(m, lq_check_level::LQ_CHECK_QUICK as i32, &mut report, &mut passed) };
+    assert_eq!(s, LQ_OK, "{}", last_error());
+    let r: serde_json::Value = serde_json::from_str(&take_string(report)).unwrap();
+    assert!(passed, "{r}");
+    let checks: Vec<&str> = r["verdicts"].as_array().unwrap().iter().map(|v| v["check"].as_str().unwrap()).collect();
+    for c in ["reciprocity", "energy", "hard_cases", "precision", "chi2"] {
+        assert!(checks.contains(&c), "{c} missing: {checks:?}");
+    }
+    assert!(r["furnace"]["max_albedo"].as_f64().unwrap() < 0.95);
+    unsafe { lq_material_free(m) };
+
+    let mut report = std::ptr::null_mut();
+    let mut passed = false;
+    let s =
+        unsafe { lq_check_model(c"lambert".as_ptr(), lq_check_level::LQ_CHECK_QUICK as i32, &mut report, &mut passed) };
+    assert_eq!(s, LQ_OK, "{}", last_error());
+    let r: serde_json::Value = serde_json::from_str(&take_string(report)).unwrap();
+    assert_eq!(r["model"], "lambert");
+    assert_eq!(r["passed"].as_bool(), Some(passed));
+    assert!(passed);
+}
+
+#[test]
+fn one_element_functions_match_the_batch_functions() {
+    let n = 600;
+    let (wi, wo, u) = inputs(n, 21);
+    let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+    for info in models::all() {
+        let m = material(&format!("{{\"model\": \"{}\"}}", info.name));
+        let (mut f, mut p) = (vec![0f32; 3 * n], vec![0f32; n]);
+        let (mut swi, mut sw, mut sp, mut fl) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n], vec![0u32; n]);
+        unsafe {
+            let s = lq_eval_pdf(m, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), p.as_mut_ptr());
+            assert_eq!(s, LQ_OK);
+            let s = lq_sample_spatial(
+                m,
+                n,
+                wo.as_ptr(),
+                u.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                swi.as_mut_ptr(),
+                sw.as_mut_ptr(),
+                sp.as_mut_ptr(),
+                fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+        }
+        for i in 0..n {
+            let (a, o, uu) = (&wi[3 * i..3 * i + 3], &wo[3 * i..3 * i + 3], &u[3 * i..3 * i + 3]);
+            let (mut f1, mut f2, mut p1, mut p2) = ([0f32; 3], [0f32; 3], 0f32, 0f32);
+            let (mut w1, mut g1, mut q1, mut fl1) = ([0f32; 3], [0f32; 3], 0f32, 0u32);
+            unsafe {
+                assert_eq!(lq_eval_one(m, a.as_ptr(), o.as_ptr(), f1.as_mut_ptr()), LQ_OK);
+                assert_eq!(lq_pdf_one(m, a.as_ptr(), o.as_ptr(), &mut p1), LQ_OK);
+                assert_eq!(lq_eval_pdf_one(m, a.as_ptr(), o.as_ptr(), f2.as_mut_ptr(), &mut p2), LQ_OK);
+                let s = lq_sample_one(m, o.as_ptr(), uu.as_ptr(), w1.as_mut_ptr(), g1.as_mut_ptr(), &mut q1, &mut fl1);
+                assert_eq!(s, LQ_OK);
+            }
+            assert_eq!(bits(&f1), bits(&f[3 * i..3 * i + 3]), "{} eval {i}", info.name);
+            assert_eq!(bits(&f2), bits(&f[3 * i..3 * i + 3]));
+            assert_eq!((p1.to_bits(), p2.to_bits()), (p[i].to_bits(), p[i].to_bits()));
+            assert_eq!(bits(&w1), bits(&swi[3 * i..3 * i + 3]), "{} sample {i}", info.name);
+            assert_eq!(bits(&g1), bits(&sw[3 * i..3 * i + 3]));
+            assert_eq!((q1.to_bits(), fl1), (sp[i].to_bits(), fl[i]));
+        }
+        unsafe { lq_material_free(m) };
+    }
+}
+
+#[test]
+fn one_element_functions_work_in_place_and_apply_the_policy() {
+    let m = material(r#"{"model": "lambert", "albedo": 0.5}"#);
+    let pi = std::f32::consts::PI;
+    // In place: the output overwrites the input it was computed from.
+    let mut buf = [0f32, 0.6, 0.8];
+    let wo = [0f32, 0.0, 1.0];
+    let p = buf.as_mut_ptr();
+    assert_eq!(unsafe { lq_eval_one(m, p, wo.as_ptr(), p) }, LQ_OK);
+    assert!((buf[0] - 0.5 / pi).abs() < 1e-7, "{buf:?}");
+    // NaN: zero output and the per-element status.
+    let nan = [f32::NAN, 0.0, 1.0];
+    let mut f = [7f32; 3];
+    assert_eq!(unsafe { lq_eval_one(m, nan.as_ptr(), wo.as_ptr(), f.as_mut_ptr()) }, LQ_ERR_INVALID_DIRECTION);
+    assert_eq!(f, [0.0; 3]);
+    assert!(last_error().contains("wi = [NaN, 0, 1]"), "{}", last_error());
+    // NULL and misaligned: nothing written.
+    let mut f = [7f32; 3];
+    assert_eq!(unsafe { lq_eval_one(m, std::ptr::null(), wo.as_ptr(), f.as_mut_ptr()) }, LQ_ERR_NULL);
+    let raw = [0u8; 32];
+    let base = raw.as_ptr() as usize;
+    let odd = (base + (4 - base % 4) + 1) as *const f32; // 1 mod 4: not aligned
+    assert_eq!(unsafe { lq_eval_one(m, odd, wo.as_ptr(), f.as_mut_ptr()) }, LQ_ERR_INVALID_ARGUMENT);
+    assert_eq!(f, [7.0; 3]);
+    // Sampling: NaN u, flags optional.
+    let (mut w, mut g, mut q, mut fl) = ([7f32; 3], [7f32; 3], 7f32, 0u32);
+    let s = unsafe {
+        lq_sample_one(m, wo.as_ptr(), [0.5, f32::NAN, 0.5].as_ptr(), w.as_mut_ptr(), g.as_mut_ptr(), &mut q, &mut fl)
+    };
+    assert_eq!(s, LQ_ERR_INVALID_ELEMENT);
+    assert_eq!((w, g, q, fl), ([0.0; 3], [0.0; 3], 0.0, LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT));
+    let s = unsafe {
+        lq_sample_one(
+            m,
+            wo.as_ptr(),
+            [0.5, 0.3, 0.6].as_ptr(),
+            w.as_mut_ptr(),
+            g.as_mut_ptr(),
+            &mut q,
+            std::ptr::null_mut(),
+        )
+    };
+    assert_eq!(s, LQ_OK);
+    assert!(q > 0.0 && (g[0] - 0.5).abs() < 1e-6);
+    unsafe { lq_material_free(m) };
+}
