@@ -88,3 +88,23 @@ def lacquer_cli():
 def cli_has_subcommand(binary, name):
     r = subprocess.run([binary, name, "--help"], capture_output=True, text=True)
     return r.returncode == 0
+
+
+@pytest.fixture(scope="session")
+def lacquer_py():
+    """The `lacquer` ctypes package (c-api/python) over liblacquer.so: an independent route to
+    the same core, used to check the plugin's convention mapping."""
+    import sys
+
+    if not os.environ.get("LACQUER_LIBRARY"):
+        for d in (os.environ.get("CARGO_TARGET_DIR"), str(REPO / "target")):
+            if d and os.path.isfile(os.path.join(d, "release", "liblacquer.so")):
+                os.environ["LACQUER_LIBRARY"] = os.path.join(d, "release", "liblacquer.so")
+                break
+    if str(REPO / "c-api" / "python") not in sys.path:
+        sys.path.append(str(REPO / "c-api" / "python"))
+    try:
+        import lacquer
+    except Exception as e:  # noqa: BLE001
+        pytest.skip(f"the lacquer Python package is unavailable: {e}")
+    return lacquer
