@@ -398,11 +398,19 @@ private:
                         dr::gather<Float>(all, idx + 2u));
     }
 
+    /// uv and footprints of a batch. Lanes without ray differentials (zero partials, e.g.
+    /// secondary bounces) get an effectively infinite footprint: the contract's mean lobe,
+    /// as the scalar path gives them by calling the functions without uv.
     bool batch_spatial(const SurfaceInteraction3f &si, size_t n, Float &uv, Float &duv) const {
         if (!m_spatial || !si.has_uv_partials())
             return false;
+        Mask has = dr::any(si.duv_dx != 0.f) || dr::any(si.duv_dy != 0.f);
+        if (dr::none_or<false>(has))
+            return false;
+        const float huge = 1e6f;
         uv = interleave(n, { si.uv.x(), si.uv.y() });
-        duv = interleave(n, { si.duv_dx.x(), si.duv_dx.y(), si.duv_dy.x(), si.duv_dy.y() });
+        duv = interleave(n, { dr::select(has, si.duv_dx.x(), huge), dr::select(has, si.duv_dx.y(), 0.f),
+                              dr::select(has, si.duv_dy.x(), 0.f), dr::select(has, si.duv_dy.y(), huge) });
         return true;
     }
 

@@ -30,7 +30,9 @@ def channel_means(path):
     return list(stats.avg)[:3]
 
 
-def compare(a, b, block=8):
+def compare(a, b, block=8, floor=1e-4):
+    """Statistics of D = a - b; `floor` (relative to b's mean) is the float-rounding level below
+    which a block difference counts as none (e.g. a background both render as exactly 0.6)."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     assert a.shape == b.shape, (a.shape, b.shape)
@@ -44,10 +46,11 @@ def compare(a, b, block=8):
     bm = blocks.mean(axis=2)
     bs = blocks.std(axis=2, ddof=1)
     nb = blocks.shape[2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(bs > 0, bm / (bs / math.sqrt(nb)), np.where(np.abs(bm) > 0, np.inf, 0.0))
     mean_a, mean_b = a.mean(), b.mean()
+    eps = floor * abs(mean_b)
+    z = bm / np.sqrt(bs**2 / nb + eps**2)
     return {
+        "max_abs_diff_rel": float(np.max(np.abs(d)) / max(abs(mean_b), 1e-30)),
         "mean_a": mean_a,
         "mean_b": mean_b,
         "rel_mean_diff": (mean_a - mean_b) / mean_b if mean_b else float("nan"),
@@ -58,7 +61,9 @@ def compare(a, b, block=8):
     }
 
 
-def assert_within_noise(stats, z_mean=5.0, block_frac=0.01, block_z=8.0):
+def assert_within_noise(stats, z_mean=5.0, block_frac=0.03, block_z=8.0):
+    if stats["max_abs_diff_rel"] <= 1e-5:
+        return  # identical up to float rounding (same sampling, same seed)
     msg = ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in stats.items())
     assert abs(stats["z_mean"]) < z_mean, "image means differ beyond noise: " + msg
     assert stats["blocks_over_4"] <= block_frac, "too many blocks differ beyond 4 sigma: " + msg
