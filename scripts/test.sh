@@ -25,7 +25,7 @@ cargo test --workspace
 step "lacquer check --all (standard configuration, release build)"
 cargo run --release -q -p lacquer-cli -- check --all
 
-for extra in c-api/test.sh; do
+for extra in c-api/test.sh mitsuba-plugin/test.sh; do
   if [ -f "$extra" ]; then
     step "$extra"
     bash "$extra"

@@ -57,11 +57,13 @@ def _native_has_variant(mi, variant: str) -> bool:
         raise
 
 
-def register(fallback: bool = True) -> str:
+def register(fallback: bool = True, python_name: str | None = None) -> str:
     """Makes the BSDF type ``lacquer`` available in the current Mitsuba variant.
 
     Returns ``"native"`` when the C++ plugin serves this variant, ``"python"`` when the Python
-    fallback was registered. Raises ``LacquerError`` when neither is possible.
+    fallback was registered. Raises ``LacquerError`` when neither is possible. With
+    ``python_name`` the Python fallback is also registered under that name (e.g.
+    ``"lacquer_py"``, to compare it with the native plugin).
     """
     import mitsuba as mi
 
@@ -71,6 +73,10 @@ def register(fallback: bool = True) -> str:
     fr = mi.file_resolver()
     if not any(os.path.abspath(str(p)) == _HERE for p in fr):
         fr.prepend(_HERE)
+    if python_name:
+        from . import fallback as fb
+
+        fb.register_python_bsdf(python_name)
     if _native_has_variant(mi, variant):
         return "native"
     if not fallback:
