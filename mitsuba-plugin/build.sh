@@ -22,6 +22,8 @@ done
 
 MITSUBA_VERSION=3.9.1
 NANOBIND_VERSION=2.14.0
+NUMPY_VERSION=2.4.6
+PYTEST_VERSION=9.2.0
 
 step() { printf '\n==== mitsuba-plugin: %s\n' "$*"; }
 
@@ -35,12 +37,13 @@ fi
 py="$venv/bin/python"
 if ! "$py" - <<PYEOF 2>/dev/null
 import importlib.metadata as m, sys
-want = {"mitsuba": "$MITSUBA_VERSION", "nanobind": "$NANOBIND_VERSION"}
-sys.exit(0 if all(m.version(k) == v for k, v in want.items()) and m.version("numpy") and m.version("pytest") else 1)
+want = {"mitsuba": "$MITSUBA_VERSION", "nanobind": "$NANOBIND_VERSION", "numpy": "$NUMPY_VERSION",
+        "pytest": "$PYTEST_VERSION"}
+sys.exit(0 if all(m.version(k) == v for k, v in want.items()) else 1)
 PYEOF
 then
   "$py" -m pip install -q --disable-pip-version-check \
-    "mitsuba==$MITSUBA_VERSION" "nanobind==$NANOBIND_VERSION" numpy pytest
+    "mitsuba==$MITSUBA_VERSION" "nanobind==$NANOBIND_VERSION" "numpy==$NUMPY_VERSION" "pytest==$PYTEST_VERSION"
 fi
 site="$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
 
