@@ -183,17 +183,19 @@ def test_footprint_reaches_sparkle(scalar_rgb):
     mean_lobe = np.array(bsdf.eval(ctx, si, wo))
     values = []
     rng = np.random.default_rng(7)
-    for _ in range(400):
+    for _ in range(1000):
         si.uv = mi.Point2f(*rng.random(2))
-        si.duv_dx = mi.Vector2f(2e-4, 0)
-        si.duv_dy = mi.Vector2f(0, 2e-4)
+        si.duv_dx = mi.Vector2f(1e-3, 0)  # 100 um at the paint's default 100 mm per uv unit
+        si.duv_dy = mi.Vector2f(0, 1e-3)
         values.append(np.array(bsdf.eval(ctx, si, wo)))
     values = np.array(values)
     if np.allclose(values, mean_lobe, rtol=1e-6):
         pytest.xfail("the C ABI's lq_*_spatial functions do not pass uv/footprint to the core's "
                      "eval_at yet (c-api/src/batch.rs); the plugin already sends them")
+    assert np.isfinite(values).all() and (values >= 0).all()
     assert values.std(axis=0).max() > 0
-    assert np.allclose(values.mean(axis=0), mean_lobe, rtol=0.3)
+    # a loose check (sparkle is spiky): the spatial mean is the mean lobe within 50 %
+    assert np.allclose(values.mean(axis=0), mean_lobe, rtol=0.5)
 
 
 def test_scalar_spectral_grey_is_exact_and_colours_are_close(scalar_spectral):
