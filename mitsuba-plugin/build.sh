@@ -3,8 +3,9 @@
 #   1. a venv ($LACQUER_VENV, default <repo>/.venv-mitsuba) with the pinned mitsuba, nanobind,
 #      numpy and pytest;
 #   2. liblacquer.a (cargo build --release -p lacquer-capi);
-#   3. mitsuba-plugin/python/lacquer_mitsuba/plugins/lacquer.so, compiled against the wheel's
-#      headers and libmitsuba, linking liblacquer.a statically;
+#   3. mitsuba-plugin/python/lacquer_mitsuba/plugins/lacquer.so (the BSDF), compiled against the
+#      wheel's headers and libmitsuba, linking liblacquer.a statically, and lacquer_path.so (a
+#      path tracer that keeps camera ray differentials, for sparkle);
 #   4. a .pth file so that `import lacquer_mitsuba` works in the venv.
 # Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb).
 set -euo pipefail
@@ -52,32 +53,40 @@ step "liblacquer.a"
 lib="$target/release/liblacquer.a"
 [ -f "$lib" ] || { echo "build.sh: $lib not found (CARGO_TARGET_DIR?)" >&2; exit 1; }
 
-step "plugins/lacquer.so"
+step "plugins/lacquer.so, plugins/lacquer_path.so"
 command -v g++ >/dev/null || { apt-get update -qq && apt-get install -y -qq g++; }
 out_dir="$here/python/lacquer_mitsuba/plugins"
 mkdir -p "$out_dir"
-out="$out_dir/lacquer.so"
-src="$here/src/lacquer_bsdf.cpp"
-stamp="$out_dir/.build-stamp"
 flags=(-std=c++17 -O2 -march=haswell -fPIC -shared -fvisibility=hidden
        -DMI_ENABLE_LLVM=1 -DMI_ENABLE_CUDA=1 -DMI_ENABLE_AUTODIFF=1 -DMI_ENABLE_EMBREE=1
        -I"$site/mitsuba/include" -I"$site/drjit/include"
        -I"$site/nanobind/include" -I"$site/nanobind/ext/robin_map/include"
        -I"$repo/c-api/include")
 [ "$with_llvm" = 1 ] && flags+=(-DLACQUER_WITH_LLVM=1)
-libs=(-L"$site/mitsuba" -L"$site/drjit" -lmitsuba -ldrjit-core -ldrjit-extra -lnanothread
-      "$lib" -Wl,--exclude-libs,ALL -lgcc_s -lutil -lrt -lpthread -lm -ldl
-      -Wl,-rpath,'$ORIGIN/../../mitsuba' -Wl,-rpath,"$site/mitsuba" -Wl,-rpath,"$site/drjit")
-# Rebuild only when the source, the header, the library or the flags changed.
-key="$(cat "$src" "$repo/c-api/include/lacquer.h" | sha256sum | cut -c1-16) $(sha256sum "$lib" | cut -c1-16) ${flags[*]} ${libs[*]}"
-if [ -f "$out" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$key" ]; then
-  echo "up to date: $out"
-else
-  g++ "${flags[@]}" "$src" -o "$out.tmp" "${libs[@]}"
-  mv "$out.tmp" "$out"
-  echo "$key" > "$stamp"
-  echo "built: $out"
-fi
+mlibs=(-L"$site/mitsuba" -L"$site/drjit" -lmitsuba -ldrjit-core -ldrjit-extra -lnanothread)
+rpath=(-Wl,-rpath,'$ORIGIN/../../mitsuba' -Wl,-rpath,"$site/mitsuba" -Wl,-rpath,"$site/drjit")
+
+# build NAME SOURCE EXTRA_LIBS...: rebuilds plugins/NAME.so only when the source, the header,
+# the Rust library or the flags changed.
+build() {
+  local name="$1" src="$here/src/$2" out key stamp
+  shift 2
+  out="$out_dir/$name.so"
+  stamp="$out_dir/.$name.stamp"
+  key="$(cat "$src" "$repo/c-api/include/lacquer.h" | sha256sum | cut -c1-16) $(sha256sum "$lib" | cut -c1-16) ${flags[*]} $*"
+  if [ -f "$out" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$key" ]; then
+    echo "up to date: $out"
+  else
+    g++ "${flags[@]}" "$src" -o "$out.tmp" "${mlibs[@]}" "$@" "${rpath[@]}"
+    mv "$out.tmp" "$out"
+    echo "$key" > "$stamp"
+    echo "built: $out"
+  fi
+}
+# The BSDF links the Rust core statically (its symbols stay private); the integrator needs
+# only Mitsuba.
+build lacquer lacquer_bsdf.cpp "$lib" -Wl,--exclude-libs,ALL -lgcc_s -lutil -lrt -lpthread -lm -ldl
+build lacquer_path lacquer_path.cpp
 
 step "lacquer_mitsuba on the venv's path"
 echo "$here/python" > "$site/lacquer_mitsuba.pth"
