@@ -30,7 +30,8 @@ cargo build --release -q -p lacquer-cli
 venv="$(bash scripts/python-env.sh)"
 "$venv/bin/python" -m pytest -q tests/test_render_exr.py tests/test_fit_mitsuba.py
 
-for extra in c-api/test.sh; do
+export LACQUER_VENV="$venv"  # the Mitsuba plugin's tests share the pinned test venv
+for extra in c-api/test.sh mitsuba-plugin/test.sh; do
   if [ -f "$extra" ]; then
     step "$extra"
     bash "$extra"

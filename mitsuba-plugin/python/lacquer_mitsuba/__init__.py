@@ -1,0 +1,114 @@
+"""Lacquer materials inside Mitsuba 3.
+
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+    import lacquer_mitsuba
+    lacquer_mitsuba.register()
+    bsdf = mi.load_dict({"type": "lacquer", "preset": "gold_flake_8"})
+
+`register()` adds this package's folder to Mitsuba's file resolver, so that Mitsuba finds the
+native plugin ``plugins/lacquer.so`` (built by ``mitsuba-plugin/build.sh``) for the variants it
+was compiled for (scalar_rgb, scalar_spectral, llvm_ad_rgb). For any other variant, or when
+the native plugin was not built, it registers a pure-Python fallback BSDF (``LacquerPyBSDF``)
+that calls the Lacquer C library through the ``lacquer`` ctypes package, if that is installed.
+
+JIT variants (llvm_ad_*): the plugin calls a host library, which Dr.Jit cannot trace into its
+symbolic kernels. Render in wavefront mode: ``wavefront()`` switches
+``dr.JitFlag.SymbolicLoops`` and ``dr.JitFlag.SymbolicCalls`` off (``with wavefront(): ...``
+restores them afterwards).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+
+__all__ = ["register", "plugin_dir", "plugin_path", "native_variants", "wavefront", "LacquerError"]
+
+#: Variants the native plugin registers (when built with the llvm variant).
+native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+class LacquerError(RuntimeError):
+    """The plugin is missing or cannot serve the current variant."""
+
+
+def plugin_dir() -> str:
+    """The folder that holds ``plugins/lacquer.so`` (what is added to the file resolver)."""
+    return _HERE
+
+
+def plugin_path() -> str:
+    """Path of the native plugin (it may not exist if build.sh has not run)."""
+    return os.path.join(_HERE, "plugins", "lacquer.so")
+
+
+def _native_has_variant(mi, variant: str) -> bool:
+    if not os.path.exists(plugin_path()):
+        return False
+    try:
+        mi.load_dict({"type": "lacquer", "material": '{"model": "lambert"}'})
+        return True
+    except Exception as e:  # noqa: BLE001 - Mitsuba raises RuntimeError subclasses
+        if "could not be found" in str(e) or "not found" in str(e):
+            return False
+        raise
+
+
+def register(fallback: bool = True, python_name: str | None = None) -> str:
+    """Makes the BSDF type ``lacquer`` available in the current Mitsuba variant.
+
+    Returns ``"native"`` when the C++ plugin serves this variant, ``"python"`` when the Python
+    fallback was registered. Raises ``LacquerError`` when neither is possible. With
+    ``python_name`` the Python fallback is also registered under that name (e.g.
+    ``"lacquer_py"``, to compare it with the native plugin).
+    """
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant is None:
+        raise LacquerError("set a Mitsuba variant first (mi.set_variant(...))")
+    fr = mi.file_resolver()
+    if not any(os.path.abspath(str(p)) == _HERE for p in fr):
+        fr.prepend(_HERE)
+    if python_name:
+        from . import fallback as fb
+
+        fb.register_python_bsdf(python_name)
+    if _native_has_variant(mi, variant):
+        return "native"
+    if not fallback:
+        raise LacquerError(_missing_message(variant))
+    try:
+        from . import fallback as fb
+    except ImportError as e:
+        raise LacquerError(_missing_message(variant) + f" (Python fallback unavailable: {e})") from e
+    fb.register_python_bsdf()
+    return "python"
+
+
+def _missing_message(variant: str) -> str:
+    if not os.path.exists(plugin_path()):
+        return (f"the native plugin {plugin_path()} is not built: run mitsuba-plugin/build.sh "
+                "(see docs/mitsuba.md)")
+    return (f"the native lacquer plugin does not support the variant {variant!r} "
+            f"(it supports {', '.join(native_variants)})")
+
+
+@contextlib.contextmanager
+def wavefront():
+    """Context manager: Dr.Jit wavefront mode (symbolic loops and calls off), as the JIT
+    variants of the plugin need; the previous flags are restored on exit."""
+    import drjit as dr
+
+    flags = (dr.JitFlag.SymbolicLoops, dr.JitFlag.SymbolicCalls)
+    old = [dr.flag(f) for f in flags]
+    try:
+        for f in flags:
+            dr.set_flag(f, False)
+        yield
+    finally:
+        for f, v in zip(flags, old):
+            dr.set_flag(f, v)

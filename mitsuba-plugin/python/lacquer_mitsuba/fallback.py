@@ -1,0 +1,186 @@
+"""Pure-Python fallback of the `lacquer` BSDF, for users without a compiler and for variants the
+native plugin does not serve (e.g. llvm_ad_mono, cuda_ad_rgb): a ``mi.BSDF`` subclass that
+evaluates whole arrays through the ``lacquer`` ctypes package (c-api/python) over
+liblacquer.so. Same parameters and conventions as the native plugin (``material`` /
+``preset``, ``tint``), without the sparkle footprint. RGB and monochrome variants only
+(spectral variants need the native plugin).
+
+In JIT variants it needs wavefront mode, like the native plugin. In scalar variants Mitsuba
+calls it once per interaction, through Python: correct but slow (use the native plugin there).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+import numpy as np
+
+import drjit as dr
+import mitsuba as mi
+
+_LQ_SAMPLE_DELTA = 1
+_LQ_SAMPLE_FAILED = 2
+
+
+def _lacquer():
+    try:
+        import lacquer  # noqa: F401
+    except ImportError:
+        repo = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
+        sys.path.append(os.path.join(repo, "c-api", "python"))
+        if not os.environ.get("LACQUER_LIBRARY"):
+            for d in (os.environ.get("CARGO_TARGET_DIR"), os.path.join(repo, "target")):
+                if d and os.path.isfile(os.path.join(d, "release", "liblacquer.so")):
+                    os.environ["LACQUER_LIBRARY"] = os.path.join(d, "release", "liblacquer.so")
+                    break
+        import lacquer  # noqa: F401
+    return sys.modules["lacquer"]
+
+
+def _is_jit():
+    return dr.is_jit_v(mi.Float)
+
+
+def _to_np3(v):
+    """(n, 3) float32 array from a Mitsuba 3-vector (scalar or JIT)."""
+    a = np.array(v, dtype=np.float32)
+    return a.reshape(1, 3) if a.ndim == 1 else np.ascontiguousarray(a.T)
+
+
+def _vec3(a):
+    a = np.asarray(a, dtype=np.float32)
+    if not _is_jit():
+        return mi.Vector3f(float(a[0, 0]), float(a[0, 1]), float(a[0, 2]))
+    return mi.Vector3f(a[:, 0], a[:, 1], a[:, 2])
+
+
+def _float(a):
+    a = np.asarray(a, dtype=np.float32)
+    return mi.Float(float(a[0])) if not _is_jit() else mi.Float(a)
+
+
+def _spectrum(rgb):
+    rgb = np.asarray(rgb, dtype=np.float32)
+    if dr.size_v(mi.Spectrum) == 1:  # monochrome variants: luminance
+        y = rgb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+        return mi.Spectrum(float(y[0])) if not _is_jit() else mi.Spectrum(mi.Float(y))
+    return mi.Spectrum(_vec3(rgb))
+
+
+_CLASSES = {}
+
+
+def bsdf_class():
+    """The fallback class for the current variant (mi.BSDF differs per variant)."""
+    variant = mi.variant()
+    if variant not in _CLASSES:
+        _CLASSES[variant] = _make_class()
+    return _CLASSES[variant]
+
+
+def _make_class():
+    class LacquerPyBSDF(mi.BSDF):
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            if mi.is_spectral or mi.is_polarized:
+                raise RuntimeError("lacquer (Python fallback): RGB and monochrome variants only; spectral "
+                                   "variants need the native plugin (mitsuba-plugin/build.sh)")
+            lq = _lacquer()
+            has_m, has_p = "material" in props, "preset" in props
+            if has_m == has_p:
+                raise RuntimeError('lacquer: give exactly one of "material" (material JSON) or "preset"')
+            self.material = lq.Material(props["material"] if has_m else {"preset": props["preset"]})
+            self.tint = props.get_texture("tint", 1.0) if "tint" in props else None
+            model = json.loads(self.material.to_json()).get("model")
+            self.smooth = mi.BSDFFlags.DiffuseReflection if model == "lambert" else mi.BSDFFlags.GlossyReflection
+            self.has_delta = self._probe_delta()
+            comps = [self.smooth | mi.BSDFFlags.FrontSide]
+            if self.has_delta:
+                comps.append(mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide)
+            self.m_components = [int(c) for c in comps]
+            flags = 0
+            for c in self.m_components:
+                flags |= c
+            self.m_flags = flags
+
+        def _probe_delta(self):
+            for c in (1.0, 0.5, 0.1, 0.02):
+                wo = np.tile([np.sqrt(1 - c * c), 0.0, c], (32, 1))
+                u = np.stack([(np.arange(32) + 0.5) / 32, np.full(32, 0.37), np.full(32, 0.61)], axis=1)
+                s = self.material.sample(wo, u, strict=False)
+                if np.any(s.flags & _LQ_SAMPLE_DELTA):
+                    return True
+            return False
+
+        @staticmethod
+        def _guard(what):
+            if dr.flag(dr.JitFlag.SymbolicScope):
+                raise RuntimeError(
+                    f"lacquer: {what} was called inside a symbolic Dr.Jit scope. The lacquer plugin calls "
+                    "the Lacquer C library on evaluated arrays and cannot run inside symbolic loops or "
+                    "calls: render in wavefront mode with dr.set_flag(dr.JitFlag.SymbolicLoops, False) "
+                    "and dr.set_flag(dr.JitFlag.SymbolicCalls, False) (see docs/mitsuba.md).")
+
+        def _tinted(self, value, si, active):
+            return value * self.tint.eval(si, active) if self.tint is not None else value
+
+        def _smooth_on(self, ctx):
+            return ctx.is_enabled(self.smooth, 0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            self._guard("eval/pdf")
+            if not self._smooth_on(ctx):
+                return mi.Spectrum(0.0), mi.Float(0.0)
+            f, p = self.material.eval_pdf(_to_np3(wo), _to_np3(si.wi), strict=False)
+            value = _spectrum(f) * dr.maximum(wo.z, 0.0)
+            value = self._tinted(value, si, active)
+            return dr.select(active, value, 0.0), dr.select(active, _float(p), 0.0)
+
+        def eval(self, ctx, si, wo, active=True):
+            return self.eval_pdf(ctx, si, wo, active)[0]
+
+        def pdf(self, ctx, si, wo, active=True):
+            return self.eval_pdf(ctx, si, wo, active)[1]
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            self._guard("sample")
+            n = dr.width(si.wi) if _is_jit() else 1
+            u = np.stack([np.broadcast_to(np.array(x, dtype=np.float32), (n,))
+                          for x in (sample1, sample2.x, sample2.y)], axis=1)
+            s = self.material.sample(_to_np3(si.wi), u, strict=False)
+            delta = (s.flags & _LQ_SAMPLE_DELTA) != 0
+            ok = ((s.flags & _LQ_SAMPLE_FAILED) == 0) & (s.pdf > 0)
+            if not (self.has_delta and ctx.is_enabled(mi.BSDFFlags.DeltaReflection, 1)):
+                ok &= ~delta
+            if not self._smooth_on(ctx):
+                ok &= delta
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = _vec3(np.where(ok[:, None], s.wi, 0))
+            bs.pdf = _float(np.where(ok, s.pdf, 0))
+            bs.eta = 1.0
+            dflag, sflag = int(mi.BSDFFlags.DeltaReflection), int(self.smooth)
+            if _is_jit():
+                bs.sampled_type = mi.UInt32(np.where(delta, dflag, sflag).astype(np.uint32))
+                bs.sampled_component = mi.UInt32(delta.astype(np.uint32))
+            else:
+                bs.sampled_type = dflag if delta[0] else sflag
+                bs.sampled_component = 1 if delta[0] else 0
+            w = self._tinted(_spectrum(np.where(ok[:, None], s.weight, 0)), si, active)
+            return bs, dr.select(active, w, 0.0)
+
+        def traverse(self, callback):
+            if self.tint is not None:
+                callback.put("tint", self.tint, mi.ParamFlags.NonDifferentiable)
+
+        def to_string(self):
+            return f"LacquerPyBSDF[material = {self.material.to_json()}]"
+
+    return LacquerPyBSDF
+
+
+def register_python_bsdf(name: str = "lacquer") -> None:
+    """Registers the fallback under `name` in the current variant."""
+    cls = bsdf_class()
+    mi.register_bsdf(name, lambda props: cls(props))

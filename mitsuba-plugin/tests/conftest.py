@@ -1,0 +1,110 @@
+"""Shared fixtures of the Mitsuba plugin tests (run by mitsuba-plugin/test.sh).
+
+The plugin is the native `plugins/lacquer.so` from `lacquer_mitsuba` (built by build.sh);
+every test loads it through `lacquer_mitsuba.register()` exactly as a user would.
+"""
+
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+
+import pytest
+
+import drjit as dr
+import mitsuba as mi
+
+import lacquer_mitsuba
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def set_variant(variant):
+    """Switch Mitsuba's variant and register the native plugin there (no Python fallback:
+    these tests are about the native plugin)."""
+    try:
+        mi.set_variant(variant)
+    except (ImportError, AttributeError, RuntimeError) as e:  # e.g. no LLVM on this machine
+        pytest.skip(f"Mitsuba variant {variant} unavailable: {e}")
+    assert lacquer_mitsuba.register(fallback=False) == "native"
+
+
+@pytest.fixture
+def scalar_rgb():
+    set_variant("scalar_rgb")
+    yield
+
+
+@pytest.fixture
+def scalar_spectral():
+    set_variant("scalar_spectral")
+    yield
+
+
+@pytest.fixture
+def llvm_rgb():
+    if not os.environ.get("DRJIT_LIBLLVM_PATH") and not any(
+        os.path.exists(p) for p in ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",)
+    ):
+        pytest.skip("no libLLVM for Dr.Jit (test.sh installs libllvm19 and sets DRJIT_LIBLLVM_PATH)")
+    set_variant("llvm_ad_rgb")
+    yield
+    mi.set_variant("scalar_rgb")
+
+
+def lacquer_dict(material):
+    """Plugin dictionary for a material (dict -> JSON string) or a preset name (str)."""
+    if isinstance(material, str):
+        return {"type": "lacquer", "preset": material}
+    return {"type": "lacquer", "material": json.dumps(material)}
+
+
+def load_lacquer(material):
+    """Instantiates the plugin; skips when the model is not registered on this branch (as
+    `lacquer models` would show: the plugin reports the C ABI's LQ_ERR_UNKNOWN_NAME)."""
+    try:
+        return mi.load_dict(lacquer_dict(material))
+    except RuntimeError as e:
+        if "LQ_ERR_UNKNOWN_NAME" in str(e) and isinstance(material, dict):
+            pytest.skip(f"model {material.get('model')!r} is not in `lacquer models` on this branch "
+                        "(it comes with the microfacet models)")
+        raise
+
+
+def lacquer_cli():
+    """Path of the `lacquer` command-line binary, or None."""
+    cands = [os.environ.get("LACQUER_BIN")]
+    if os.environ.get("CARGO_TARGET_DIR"):
+        cands.append(os.path.join(os.environ["CARGO_TARGET_DIR"], "release", "lacquer"))
+    cands.append(str(REPO / "target" / "release" / "lacquer"))
+    cands.append(shutil.which("lacquer"))
+    for c in cands:
+        if c and os.path.isfile(c) and os.access(c, os.X_OK):
+            return c
+    return None
+
+
+def cli_has_subcommand(binary, name):
+    r = subprocess.run([binary, name, "--help"], capture_output=True, text=True)
+    return r.returncode == 0
+
+
+@pytest.fixture(scope="session")
+def lacquer_py():
+    """The `lacquer` ctypes package (c-api/python) over liblacquer.so: an independent route to
+    the same core, used to check the plugin's convention mapping."""
+    import sys
+
+    if not os.environ.get("LACQUER_LIBRARY"):
+        for d in (os.environ.get("CARGO_TARGET_DIR"), str(REPO / "target")):
+            if d and os.path.isfile(os.path.join(d, "release", "liblacquer.so")):
+                os.environ["LACQUER_LIBRARY"] = os.path.join(d, "release", "liblacquer.so")
+                break
+    if str(REPO / "c-api" / "python") not in sys.path:
+        sys.path.append(str(REPO / "c-api" / "python"))
+    try:
+        import lacquer
+    except Exception as e:  # noqa: BLE001
+        pytest.skip(f"the lacquer Python package is unavailable: {e}")
+    return lacquer
