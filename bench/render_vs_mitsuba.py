@@ -9,12 +9,10 @@ Setup (once):  python3 -m venv .venv-bench &&
 Build:         cargo build --release -p lacquer-cli
 Run:           .venv-bench/bin/python bench/render_vs_mitsuba.py [--spp 64 --size 256 --repeat 3]
 
-The material on the lacquer side is `coated_paint` reduced to a bare GGX metal (no coat:
-coat_ior = 1; no pigment, flakes or pearl; base_metallic = 1, base_color = gold's normal
-reflectance, base_roughness = α): GGX with height-correlated Smith masking and Schlick
-Fresnel. Mitsuba's `roughconductor` uses separable Smith masking and the exact conductor
-Fresnel of its spectral gold data, so the images differ slightly (the script prints the mean
-difference); the timing compares the two renderers on the same light transport. Depths:
+The material on the lacquer side is `rough_conductor` (GGX, separable Smith masking, exact
+conductor Fresnel with gold's RGB n, k), the model written to Mitsuba's `roughconductor`
+conventions; Mitsuba's gold constants come from its own spectral data reduced to RGB, so the
+images differ slightly (the script prints the mean difference). Depths:
 lacquer's max_depth counts scattering events, Mitsuba's counts path segments, so Mitsuba gets
 max_depth + 1.
 
@@ -55,9 +53,8 @@ def lacquer_bin():
 
 
 def lacquer_scene(alpha):
-    material = {"model": "coated_paint", "coat_ior": 1.0, "coat_thickness_um": 0, "flake_density": 0,
-                "base_metallic": 1.0, "base_roughness": alpha, "base_color": [round(float(v), 6) for v in AU_F0],
-                "sparkle": False}
+    material = {"model": "rough_conductor", "distribution": "ggx", "alpha_u": alpha, "alpha_v": alpha,
+                "material": "Au"}
     return {
         "camera": CAMERA,
         "materials": {"metal": material, "floor": {"model": "lambert", "albedo": FLOOR_ALBEDO}},
