@@ -108,7 +108,7 @@ for exe in consumer_cpp consumer_c_static; do
 done
 if [ "$skip_valgrind" = 0 ]; then
     for exe in consumer_c consumer_c_static consumer_cpp; do
-        step "valgrind $exe" valgrind -q --error-exitcode=1 --leak-check=full \
+        step "valgrind $exe" valgrind -q --error-exitcode=1 --leak-check=full --suppressions="$here/valgrind.supp" \
             --errors-for-leak-kinds=definite,indirect,possible --show-leak-kinds=definite,indirect,possible \
             "$bin/$exe"
     done
