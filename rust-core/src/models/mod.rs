@@ -64,6 +64,7 @@ macro_rules! models {
 
 models! {
     CoatedPaint(coated_paint::CoatedPaint),
+    Htsg(htsg::Htsg),
     Lambert(lambert::Lambert),
     Ward(ward::Ward),
     WardDuer(ward_duer::WardDuer),
