@@ -261,20 +261,28 @@ const GH7: [(f64, f64); 7] = [
 ];
 
 impl GaussMixture {
-    /// The terms `m ≥ 1` of a zero-truncated Poisson(`g`) with per-axis variance
-    /// `var_per_m · m + var0`: exact terms for `g ≤ 30`, Gauss-Hermite nodes on the normal
-    /// limit above. `None` when `g` is zero.
-    pub(crate) fn poisson(g: f64, var_per_m: f64, var0: f64) -> Option<Self> {
-        if !(g > 1e-300) || !g.is_finite() {
-            return None;
-        }
+    /// The terms `m ≥ 1` (or `m ≥ 0` with `from_zero`) of a Poisson(`g`), renormalised, with
+    /// per-axis variance `var_per_m · m + var0`: exact terms for `g ≤ 30`, 7-point
+    /// Gauss-Hermite nodes on the normal limit above (where the `m = 0` mass is below 1e-13).
+    /// `None` when there is no mass (`g = 0` without `from_zero`).
+    pub(crate) fn poisson(g: f64, var_per_m: f64, var0: f64, from_zero: bool) -> Option<Self> {
         let mut mix = Self { n: 0, weight: [0.0; MAX_COMPONENTS], var: [0.0; MAX_COMPONENTS] };
+        if !(g > 1e-300) || !g.is_finite() {
+            if !from_zero {
+                return None;
+            }
+            mix.weight[0] = 1.0;
+            mix.var[0] = var0;
+            mix.n = 1;
+            return Some(mix);
+        }
         if g <= 30.0 {
-            // p_m ∝ g^m/m!, by recurrence from m = 1.
-            let mut p = 1.0f64;
+            // p_m ∝ g^m/m!, by recurrence (p₀ = 1/g relative to p₁ = 1).
+            let first = usize::from(!from_zero);
+            let mut p = if from_zero { 1.0 / g } else { 1.0 };
             let mut best = 0.0f64;
-            for m in 1..=MAX_COMPONENTS {
-                if m > 1 {
+            for m in first..first + MAX_COMPONENTS {
+                if m > first {
                     p *= g / m as f64;
                 }
                 best = best.max(p);
@@ -465,7 +473,7 @@ impl Htsg {
     /// The sampling mixture of channel `c`'s directional-diffuse lobe in the `v_xy` plane.
     fn dd_mixture(&self, c: usize, g_o: f64) -> Option<GaussMixture> {
         let k = Self::wave_number(c);
-        GaussMixture::poisson(g_o, 2.0 / (k * self.tau).powi(2), 0.0)
+        GaussMixture::poisson(g_o, 2.0 / (k * self.tau).powi(2), 0.0, false)
     }
 
     fn pdf64(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> f64 {
