@@ -374,6 +374,8 @@ impl PoulinFournier {
 
     /// The BRDF in f64.
     fn eval64(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> [f64; 3] {
+        // Renormalised in f64 so the f32 path sees the same directions as the f64 path.
+        let (wi, wo) = (wi.normalize(), wo.normalize());
         let (ci, co) = (wi.z, wo.z);
         if !(ci > 0.0) || !(co > 0.0) {
             return [0.0; 3];
@@ -481,6 +483,7 @@ impl PoulinFournier {
     const DEFENSIVE: f64 = 0.1;
 
     fn pdf64(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> f64 {
+        let (wi, wo) = (wi.normalize(), wo.normalize());
         if !(wi.z > 0.0) || !(wo.z > 0.0) {
             return 0.0;
         }
@@ -506,6 +509,7 @@ impl PoulinFournier {
     }
 
     fn sample64(&self, wo: Vec3<f64>, u: [f64; 3]) -> Option<Vec3<f64>> {
+        let wo = wo.normalize();
         let (w, p_spec) = self.facet_weights(wo);
         let total: f64 = w.iter().sum();
         let (lobe, u0) = if total > 0.0 {

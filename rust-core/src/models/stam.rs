@@ -33,22 +33,24 @@
 //! channels are clipped to 0. The integral runs over `t = 1/λ`, in which every order's
 //! factor `N(u − nλ/a; s²) N(v; s²)` is an exact Gaussian (centre `t_c = nu/(a(u² + v²))`,
 //! deviation `1/(2√2πℓ √(u² + v²))`): each diffracted order is integrated by Simpson's rule
-//! over ±7 deviations of that Gaussian (node spacing ≤ half a deviation and ≤ 6 nm), the zeroth
+//! over ±7 deviations of that Gaussian (node spacing ≤ half a deviation and ≤ 0.02 µm⁻¹ in
+//! `t`, i.e. ≤ 4 nm where the colour-matching functions are narrowest), the zeroth
 //! order over the whole range (96 intervals), and the random profile on 12 wavelengths with
-//! hat-function weights. `F` is the
+//! hat-function weights. The sine grating's Bessel functions come from a table built with the
+//! model (cubic Hermite with exact derivatives, error below 1e-10). `F` is the
 //! polarisation-averaged conductor reflectance of each channel (the RGB reduction of the
 //! complex index) at `cos θℓ = |wi + wo|/2`.
 //!
 //! | parameter | kind | default | range | unit | meaning |
 //! |---|---|---|---|---|---|
 //! | `profile` | choice | binary | binary, sine, random | | height profile |
-//! | `pitch` | scalar | 1.6 | [0.5, 10] | µm | grating period `a` (binary, sine) |
+//! | `pitch` | scalar | 1.6 | [0.3, 5] | µm | grating period `a` (binary, sine) |
 //! | `depth` | scalar | 0.11 | [0, 1] | µm | step height (binary) or peak-to-valley height (sine) `H` |
 //! | `duty` | scalar | 0.35 | [0.05, 0.95] | | fraction of the period at the raised level (binary) |
 //! | `roughness` | scalar | 0.08 | [0, 0.25] | µm | RMS height σ (random) |
 //! | `correlation_x` | scalar | 1 | [0.2, 10] | µm | correlation length `Tx` along the grating vector (random) |
 //! | `correlation_y` | scalar | 4 | [0.2, 10] | µm | correlation length `Ty` across it (random) |
-//! | `coherence` | scalar | 3 | [1, 50] | µm | coherence length `ℓ` of the illumination on the surface |
+//! | `coherence` | scalar | 3 | [2, 50] | µm | coherence length `ℓ` of the illumination on the surface |
 //! | `direction` | scalar | 0 | [0, 180] | degrees | angle of the grating vector (across the tracks) from the tangent x |
 //! | `eta` | colour | Al | [0.01, 10] | | real part of the complex index |
 //! | `k` | colour | Al | [0, 20] | | extinction coefficient |
@@ -61,7 +63,8 @@
 //! `f cos θi dωi = F G/w² Φ du dv`: gratings — order `n` with probability ∝ its
 //! luminance-weighted efficiency at `w = 2 cos θo` (tabulated over `w` at build time), then
 //! `u = nλ/a + s·z₁`, `v = s·z₂` with λ uniform on 380-780 nm and `s` one of `s(450 nm)`,
-//! `s(750 nm)`; random — the Poisson mixture of the random profile at 450, 550 and 650 nm;
+//! `s(750 nm)` (floored at 0.03 and 0.045: the proxy need not be as sharp as very coherent
+//! lines); random — the Poisson mixture of the random profile at 450, 550 and 650 nm;
 //! plus 10 % of cosine-weighted directions. `pdf` is that mixture (times `cos θi`).
 //!
 //! References: J. Stam, "Diffraction shaders", SIGGRAPH 1999; P. Beckmann, A. Spizzichino,
@@ -85,13 +88,13 @@ const AL_K: [f64; 3] = [9.22387, 6.26952, 4.837];
 
 const PARAMS: &[ParamSpec] = &[
     ParamSpec::choice("profile", "binary", &["binary", "sine", "random"], "height profile of the surface"),
-    ParamSpec::scalar("pitch", 1.6, 0.5, 10.0, "µm", "grating period a (binary, sine)"),
+    ParamSpec::scalar("pitch", 1.6, 0.3, 5.0, "µm", "grating period a (binary, sine)"),
     ParamSpec::scalar("depth", 0.11, 0.0, 1.0, "µm", "step height (binary) or peak-to-valley height (sine)"),
     ParamSpec::scalar("duty", 0.35, 0.05, 0.95, "", "fraction of the period at the raised level (binary)"),
     ParamSpec::scalar("roughness", 0.08, 0.0, 0.25, "µm", "RMS height σ (random)"),
     ParamSpec::scalar("correlation_x", 1.0, 0.2, 10.0, "µm", "correlation length along the grating vector (random)"),
     ParamSpec::scalar("correlation_y", 4.0, 0.2, 10.0, "µm", "correlation length across the grating vector (random)"),
-    ParamSpec::scalar("coherence", 3.0, 1.0, 50.0, "µm", "coherence length ℓ of the illumination on the surface"),
+    ParamSpec::scalar("coherence", 3.0, 2.0, 50.0, "µm", "coherence length ℓ of the illumination on the surface"),
     ParamSpec::scalar(
         "direction",
         0.0,
@@ -219,11 +222,6 @@ fn hat_weights(n: usize) -> Vec<(f64, [f64; 3])> {
     out
 }
 
-fn zeroth_nodes() -> &'static [(f64, [f64; 3])] {
-    static T: OnceLock<Vec<(f64, [f64; 3])>> = OnceLock::new();
-    T.get_or_init(|| hat_weights(95))
-}
-
 fn random_nodes() -> &'static [(f64, [f64; 3])] {
     static T: OnceLock<Vec<(f64, [f64; 3])>> = OnceLock::new();
     T.get_or_init(|| hat_weights(12))
@@ -243,6 +241,10 @@ fn norm_cdf(x: f64) -> f64 {
 
 /// Nodes of the `w` table of order efficiencies (the sampling proxy).
 const W_NODES: usize = 65;
+/// Intervals of the Bessel-function table of the sine grating.
+const BESSEL_NODES: usize = 2048;
+/// Smallest standard deviation of the proxy's Gaussians in `u` and `v`.
+const PROXY_MIN_SPREAD: f64 = 0.03;
 
 /// The diffraction shader with its cached order-efficiency table.
 #[derive(Clone, Debug)]
@@ -263,6 +265,14 @@ pub struct Stam {
     pub k: [f64; 3],
     /// Highest order the proxy samples.
     nmax: i32,
+    /// Highest order any direction can reach: `2a/λ_min`.
+    reach: usize,
+    /// Binary grating: `sin²(πnf)/(π²n²)` for `n = 0..=reach` (entry 0 unused).
+    binary_factor: Vec<f64>,
+    /// Sine grating: `J_n(x)` for `n = 0..=reach + 1` on `BESSEL_NODES + 1` nodes of `x`.
+    bessel: Vec<f64>,
+    /// Node spacing of the Bessel table.
+    bessel_dx: f64,
     /// Luminance-weighted efficiency of orders −nmax..=nmax at `w = 2i/(W_NODES−1)`.
     efficiency: Vec<Vec<f64>>,
 }
@@ -289,8 +299,36 @@ impl Stam {
             eta,
             k,
             nmax: 0,
+            reach: (2.0 * pitch / LAMBDA_LO).ceil() as usize + 1,
+            binary_factor: Vec::new(),
+            bessel: Vec::new(),
+            bessel_dx: 1.0,
             efficiency: Vec::new(),
         };
+        match profile {
+            Profile::Binary { duty } => {
+                m.binary_factor = (0..=m.reach)
+                    .map(|n| {
+                        let nf = n as f64;
+                        if n == 0 {
+                            0.0
+                        } else {
+                            (PI * nf * duty).sin().powi(2) / (PI * PI * nf * nf)
+                        }
+                    })
+                    .collect();
+            }
+            Profile::Sine => {
+                // x = k w H/2 ≤ (2π/λ_min)·2·H/2.
+                let x_max = 2.0 * PI / LAMBDA_LO * depth + 1e-9;
+                m.bessel_dx = x_max / BESSEL_NODES as f64;
+                m.bessel = (0..=m.reach + 1)
+                    .flat_map(|n| (0..=BESSEL_NODES).map(move |i| (n, i)))
+                    .map(|(n, i)| libm::jn(n as i32, i as f64 * m.bessel_dx))
+                    .collect();
+            }
+            Profile::Random { .. } => {}
+        }
         if !matches!(profile, Profile::Random { .. }) {
             m.nmax = (2.2 * pitch / SAMPLE_LO).floor() as i32;
             let lums: Vec<(f64, f64)> =
@@ -314,20 +352,47 @@ impl Stam {
         lambda / (2.0 * std::f64::consts::SQRT_2 * PI * self.coherence)
     }
 
+    /// `J_n(x)` from the table by cubic Hermite interpolation, with the exact derivative
+    /// `J_n' = (J_{n−1} − J_{n+1})/2` (`J_0' = −J_1`); `libm::jn` outside the table.
+    fn bessel(&self, n: usize, x: f64) -> f64 {
+        let stride = BESSEL_NODES + 1;
+        if n + 1 >= self.bessel.len() / stride || !(x >= 0.0) || x > BESSEL_NODES as f64 * self.bessel_dx {
+            return libm::jn(n as i32, x);
+        }
+        let h = self.bessel_dx;
+        let pos = x / h;
+        let i = (pos as usize).min(BESSEL_NODES - 1);
+        let t = pos - i as f64;
+        let at = |n: usize, i: usize| self.bessel[n * stride + i];
+        let deriv = |i: usize| {
+            if n == 0 {
+                -at(1, i)
+            } else {
+                0.5 * (at(n - 1, i) - at(n + 1, i))
+            }
+        };
+        let (y0, y1, d0, d1) = (at(n, i), at(n, i + 1), deriv(i), deriv(i + 1));
+        let (t2, t3) = (t * t, t * t * t);
+        (2.0 * t3 - 3.0 * t2 + 1.0) * y0 + (t3 - 2.0 * t2 + t) * h * d0 + (-2.0 * t3 + 3.0 * t2) * y1 + (t3 - t2) * h * d1
+    }
+
     /// Diffraction efficiency `|c_n|²` of a grating at wavelength λ (µm) and `w`.
     #[must_use]
     pub fn efficiency_of(&self, n: i32, lambda: f64, w: f64) -> f64 {
         let phase = 2.0 * PI / lambda * w * self.depth;
         match self.profile {
             Profile::Binary { duty } => {
+                let na = n.unsigned_abs() as usize;
                 if n == 0 {
                     1.0 - 2.0 * duty * (1.0 - duty) * (1.0 - phase.cos())
+                } else if na < self.binary_factor.len() {
+                    4.0 * (0.5 * phase).sin().powi(2) * self.binary_factor[na]
                 } else {
                     let nf = n as f64;
                     4.0 * (0.5 * phase).sin().powi(2) * (PI * nf * duty).sin().powi(2) / (PI * PI * nf * nf)
                 }
             }
-            Profile::Sine => libm::jn(n, 0.5 * phase).powi(2),
+            Profile::Sine => self.bessel(n.unsigned_abs() as usize, 0.5 * phase).powi(2),
             Profile::Random { .. } => {
                 if n == 0 {
                     1.0
@@ -415,7 +480,7 @@ impl Stam {
             }
         };
         // Zeroth order: a Gaussian in t centred at 0, over the whole range.
-        if 0.5 * kappa * kappa * r2 * t_lo * t_lo < 700.0 {
+        if 0.5 * kappa * kappa * r2 * t_lo * t_lo < 36.0 {
             order(0, t_lo, t_hi, 96, &mut out);
         }
         // Orders n ≠ 0: Gaussian in t centred at n u/(a r²) with deviation 1/(κ √r²).
@@ -430,9 +495,12 @@ impl Stam {
                 let centre = na / scale;
                 let (a, b) = ((centre - span).max(t_lo), (centre + span).min(t_hi));
                 if b > a {
-                    // Spacing ≤ sd/2 and ≤ 6 nm (dt = dλ/λ², smallest at the red end).
-                    let dt = (0.5 * sd).min(0.006 * t_lo * t_lo);
-                    let intervals = (((b - a) / dt).ceil() as usize).clamp(16, 400).next_multiple_of(2);
+                    // Spacing ≤ sd/2 and dt ≤ 0.02 µm⁻¹ (dλ = λ² dt: ≤ 4 nm where the
+                    // colour-matching functions are narrowest, 430-530 nm; ≤ 14 nm at 830 nm).
+                    let dt = (0.5 * sd).min(0.02);
+                    // (The −1e-6 keeps the unclipped window, exactly 28 spacings wide, off a
+                    // knife edge between 28 and 30 intervals.)
+                    let intervals = (((b - a) / dt - 1e-6).ceil() as usize).clamp(16, 400).next_multiple_of(2);
                     order(n, a, b, intervals, &mut out);
                 }
                 na += 1.0;
@@ -442,6 +510,9 @@ impl Stam {
     }
 
     fn eval64(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> [f64; 3] {
+        // Renormalised in f64 so the f32 path (whose inputs pass the front end's f32 unit
+        // test unchanged) sees the same directions as the f64 path: the lines are sharp.
+        let (wi, wo) = (wi.normalize(), wo.normalize());
         let (ci, co) = (wi.z.min(1.0), wo.z.min(1.0));
         if !(ci > 0.0) || !(co > 0.0) {
             return [0.0; 3];
@@ -462,6 +533,12 @@ impl Stam {
         })
     }
 
+    /// The two spreads of the grating proxy: `s(450 nm)` and `s(750 nm)`, at least
+    /// `PROXY_MIN_SPREAD` (very coherent light gives lines far sharper than any sampler needs).
+    fn proxy_widths(&self) -> [f64; 2] {
+        [self.spread(0.45).max(PROXY_MIN_SPREAD), self.spread(0.75).max(1.5 * PROXY_MIN_SPREAD)]
+    }
+
     /// Order probabilities of the proxy for `w` (orders −nmax..=nmax).
     fn order_weights(&self, w: f64) -> Vec<f64> {
         let x = (w.clamp(0.0, 2.0) * 0.5 * (W_NODES - 1) as f64).min((W_NODES - 1) as f64);
@@ -478,7 +555,7 @@ impl Stam {
             .iter()
             .map(|&l| {
                 let k = 2.0 * PI / l;
-                let s2 = self.spread(l).powi(2);
+                let s2 = self.spread(l).max(PROXY_MIN_SPREAD).powi(2);
                 let g = (k * sigma * w).powi(2);
                 // Unit per-m variance; the axes scale it (anisotropic) and add s² below.
                 let mix = GaussMixture::poisson(g, 1.0, 0.0, true).expect("a mixture from m = 0 always exists");
@@ -504,7 +581,7 @@ impl Stam {
         if !(total > 0.0) {
             return 0.0;
         }
-        let widths = [self.spread(0.45), self.spread(0.75)];
+        let widths = self.proxy_widths();
         let mut d = 0.0;
         for (idx, &wn) in weights.iter().enumerate() {
             if wn <= 0.0 {
@@ -549,7 +626,7 @@ impl Stam {
         let (idx, u0) = pick_lobe(&weights, u0)?;
         let n = idx as i32 - self.nmax;
         let (width, u0) = pick_lobe(&[1.0, 1.0], u0)?;
-        let s = if width == 0 { self.spread(0.45) } else { self.spread(0.75) };
+        let s = self.proxy_widths()[width];
         let centre = if n == 0 { 0.0 } else { n as f64 * (SAMPLE_LO + (SAMPLE_HI - SAMPLE_LO) * u0) / self.pitch };
         Some((centre + s * z1, s * z2))
     }
@@ -558,6 +635,7 @@ impl Stam {
     const DEFENSIVE: f64 = 0.1;
 
     fn pdf64(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> f64 {
+        let (wi, wo) = (wi.normalize(), wo.normalize());
         if !(wi.z > 0.0) || !(wo.z > 0.0) {
             return 0.0;
         }
@@ -567,6 +645,7 @@ impl Stam {
     }
 
     fn sample64(&self, wo: Vec3<f64>, u: [f64; 3]) -> Option<Vec3<f64>> {
+        let wo = wo.normalize();
         let (lobe, u0) = pick_lobe(&[Self::DEFENSIVE, 1.0 - Self::DEFENSIVE], u[0])?;
         if lobe == 0 {
             return Some(cosine_hemisphere(u[1], u[2]));
@@ -664,7 +743,7 @@ mod tests {
     /// weights) sum to one per channel.
     #[test]
     fn flat_spectrum_is_grey() {
-        for nodes in [zeroth_nodes(), random_nodes()] {
+        for nodes in [hat_weights(95).as_slice(), random_nodes()] {
             for c in 0..3 {
                 let s: f64 = nodes.iter().map(|n| n.1[c]).sum();
                 assert!((s - 1.0).abs() < 1e-9, "{s}");
@@ -739,7 +818,7 @@ mod tests {
         for m in [
             grating(Profile::Binary { duty: 0.35 }, 0.11, 3.0),
             grating(Profile::Sine, 0.3, 1.5),
-            Stam::new(Profile::Binary { duty: 0.5 }, 6.0, 0.3, 10.0, 0.0, AL_ETA, AL_K),
+            Stam::new(Profile::Binary { duty: 0.5 }, 5.0, 0.3, 10.0, 0.0, AL_ETA, AL_K),
         ] {
             for (u, v, w) in [(0.0, 0.0, 2.0), (0.3, 0.01, 1.8), (-0.7, 0.0, 1.2), (1.2, -0.02, 1.9), (0.02, 0.01, 0.5)] {
                 let got = m.spectral_phi(u, v, w);
@@ -783,6 +862,19 @@ mod tests {
                     assert!((s.pdf - p).abs() <= 1e-12 * p);
                 }
             }
+        }
+    }
+
+    /// The sine grating's Bessel table reproduces `libm::jn` to 1e-10.
+    #[test]
+    fn bessel_table_is_accurate() {
+        let m = grating(Profile::Sine, 0.7, 3.0);
+        let mut rng = Pcg32::new(2, 2);
+        for _ in 0..20_000 {
+            let n = (rng.uniform() * m.reach as f64) as usize;
+            let x = rng.uniform() * 2.0 * PI / LAMBDA_LO * 0.7;
+            let (a, b) = (m.bessel(n, x), libm::jn(n as i32, x));
+            assert!((a - b).abs() < 1e-10, "J_{n}({x}): {a} vs {b}");
         }
     }
 }
