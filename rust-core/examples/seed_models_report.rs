@@ -62,7 +62,7 @@ fn timing() {
         ("poulin_fournier grooves, n 1000", r#"{"model": "poulin_fournier", "profile": "grooves", "exponent": 1000}"#),
         ("stam (defaults: binary CD grating)", r#"{"model": "stam"}"#),
         ("stam sine, pitch 1 µm", r#"{"model": "stam", "profile": "sine", "pitch": 1.0, "depth": 0.3}"#),
-        ("stam binary, pitch 10 µm", r#"{"model": "stam", "pitch": 10.0, "depth": 0.3}"#),
+        ("stam binary, pitch 5 µm", r#"{"model": "stam", "pitch": 5.0, "depth": 0.3}"#),
         ("stam random", r#"{"model": "stam", "profile": "random"}"#),
         ("lambert (reference)", r#"{"model": "lambert"}"#),
     ];

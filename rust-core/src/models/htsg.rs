@@ -781,6 +781,7 @@ mod tests {
                 worst = worst.max(rel);
             }
         }
+        println!("HTSG rough limit: worst relative gap to the Beckmann microfacet BRDF {worst:.2e}");
         assert!(worst < 0.02, "worst relative gap to Beckmann: {worst}");
     }
 
@@ -804,6 +805,7 @@ mod tests {
         let wo = dir(1.0, 0.0);
         let (a, se) = albedo(&mat, wo, 200_000, &mut Pcg32::new(1, 2));
         let f0 = 0.04;
+        println!("HTSG normal-incidence albedo (sp + dd), η = 1.5: {a:?} ± {se:.1e}, F(0) = {f0}");
         for c in 0..3 {
             // Fresnel varies by < 1e-3 over the lobe; S = 1 at normal incidence.
             assert!((a[c] - f0).abs() < 2e-3 * f0 + 4.0 * se, "channel {c}: {} vs {f0}", a[c]);
@@ -836,6 +838,7 @@ mod tests {
         assert!(rough.rel_rms < 0.15, "{rough:?}");
         assert!((rough.alpha / 0.25 - 1.0).abs() < 0.25, "{rough:?}");
         let smooth = model(0.03, 1.0).beckmann_fit(1);
+        println!("Beckmann fit to HTSG: rough {rough:?}, smooth {smooth:?}");
         assert!(smooth.rel_rms > 2.0 * rough.rel_rms, "{smooth:?} vs {rough:?}");
     }
 }

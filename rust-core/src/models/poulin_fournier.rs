@@ -164,18 +164,29 @@ pub struct PoulinFournier {
     foot: f64,
     /// Period 2 sin θm + d.
     period: f64,
-    /// Sampling facets on the arc: (θ_k, Δθ_k).
-    facets: Vec<(f64, f64)>,
+    /// Sampling facets on the arc.
+    facets: Vec<Facet>,
 }
 
 /// A direction projected on the plane across the cylinders: `(p, z)` components, the length
-/// of the projection and its elevation β ∈ (0, π).
+/// of the projection, its elevation β ∈ (0, π), and `cos 2β`, `sin 2β`.
 #[derive(Clone, Copy, Debug)]
 struct Projected {
     ux: f64,
     uz: f64,
     len: f64,
     beta: f64,
+    cos2b: f64,
+    sin2b: f64,
+}
+
+/// A sampling facet of the arc: normal angle, arc length, `sin θ`, `cos θ` and the 3-D normal.
+#[derive(Clone, Copy, Debug)]
+struct Facet {
+    dt: f64,
+    sin: f64,
+    cos: f64,
+    normal: Vec3<f64>,
 }
 
 impl PoulinFournier {
@@ -200,17 +211,19 @@ impl PoulinFournier {
         } else {
             0
         };
+        let axis = [a.cos(), a.sin()];
         let facets = (0..k)
             .map(|i| {
                 let dt = 2.0 * theta_m / k as f64;
-                (-theta_m + (i as f64 + 0.5) * dt, dt)
+                let (sin, cos) = (-theta_m + (i as f64 + 0.5) * dt).sin_cos();
+                Facet { dt, sin, cos, normal: Vec3::new(-axis[1] * sin, axis[0] * sin, cos) }
             })
             .collect();
         Self {
             height,
             spacing,
             grooves,
-            axis: [a.cos(), a.sin()],
+            axis,
             diffuse,
             specular,
             exponent,
@@ -243,7 +256,9 @@ impl PoulinFournier {
     fn project(&self, w: Vec3<f64>) -> Projected {
         let x = self.across(w);
         let len = (x * x + w.z * w.z).sqrt();
-        Projected { ux: x / len, uz: w.z / len, len, beta: w.z.atan2(x) }
+        let (ux, uz) = (x / len, w.z / len);
+        // cos 2β = ux² − uz², sin 2β = 2 ux uz.
+        Projected { ux, uz, len, beta: w.z.atan2(x), cos2b: ux * ux - uz * uz, sin2b: 2.0 * ux * uz }
     }
 
     /// Is the ray from profile point `(px, pz)` along `u` blocked by a bump (disk) centred at
@@ -259,10 +274,17 @@ impl PoulinFournier {
 
     /// Is the arc point at normal angle θ shadowed (or masked) along `u`?
     fn arc_blocked(&self, theta: f64, u: &Projected) -> bool {
+        let (s, c) = theta.sin_cos();
+        self.arc_blocked_sc(s, c, u)
+    }
+
+    /// [`Self::arc_blocked`] from `sin θ` and `cos θ`.
+    fn arc_blocked_sc(&self, sin: f64, cos: f64, u: &Projected) -> bool {
         if self.grooves {
-            return (theta + 2.0 * u.beta).cos() > 1.0 - self.height;
+            // cos(θ + 2β) > 1 − h.
+            return cos * u.cos2b - sin * u.sin2b > 1.0 - self.height;
         }
-        let (px, pz) = (theta.sin(), self.height - 1.0 + theta.cos());
+        let (px, pz) = (sin, self.height - 1.0 + cos);
         let side = if u.ux >= 0.0 { 1.0 } else { -1.0 };
         self.hits_disk(px, pz, side * self.period, u) || self.hits_disk(px, pz, 2.0 * side * self.period, u)
     }
@@ -460,9 +482,9 @@ impl PoulinFournier {
             return (w, p_spec);
         }
         let uo = self.project(wo);
-        for &(theta, dt) in &self.facets {
-            let no = self.normal(theta).dot(wo);
-            w.push(if no > 0.0 && !self.arc_blocked(theta, &uo) { no * dt } else { 0.0 });
+        for f in &self.facets {
+            let no = f.normal.dot(wo);
+            w.push(if no > 0.0 && !self.arc_blocked_sc(f.sin, f.cos, &uo) { no * f.dt } else { 0.0 });
         }
         let flat = if self.spacing > 0.0 { self.flat_length(&uo, &uo) } else { 0.0 };
         w.push(flat * wo.z);
@@ -473,7 +495,7 @@ impl PoulinFournier {
     #[inline]
     fn facet_normal(&self, k: usize) -> Vec3<f64> {
         if k < self.facets.len() && !self.flat() {
-            self.normal(self.facets[k].0)
+            self.facets[k].normal
         } else {
             Vec3::new(0.0, 0.0, 1.0)
         }
@@ -637,6 +659,7 @@ mod tests {
                 }
             }
         }
+        println!("Poulin-Fournier visibility: {checked} points agree with ray marching");
         assert!(checked > 1000);
     }
 
@@ -712,6 +735,7 @@ mod tests {
                 worst = worst.max(err);
             }
         }
+        println!("Poulin-Fournier quadrature vs brute force: worst relative error {worst:.2e}");
         assert!(worst < 1e-4, "worst relative error {worst}");
     }
 
