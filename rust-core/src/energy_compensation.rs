@@ -47,6 +47,14 @@
 //! inverts a CDF numerically). Tables are cached by their exact parameters
 //! ([`AlbedoTable::cached`]), so materials sharing a roughness share one table.
 //!
+//! ## Fresnel-weighted tables
+//! [`AlbedoTable::weighted`] (and its cached form [`AlbedoTable::cached_weighted`]) tabulate,
+//! on the same nodes and with the same interpolation, `1 − E_w(wo)` for the single-scattering
+//! albedo `E_w(wo) = ∫ w(wo·m) G(wi, wo, m)/G1(wo, m) D_wo(m) dm` weighted by a Fresnel-like
+//! function `w(cos) ∈ [0, 1]` of the angle on the microfacet ([`directional_albedo_weighted`]):
+//! the exact directional albedo of a microfacet lobe with that Fresnel curve, as layered models
+//! (the `principled` model's albedo-scaled layers) need it.
+//!
 //! ## Integrals over visible normals
 //! [`visible_normal_integral`] is the general rule behind [`directional_albedo`]: any
 //! `∫ D_w(m) f(m) dm` over all visible normals or over those whose mirror stays above the
@@ -94,6 +102,32 @@ pub struct AlbedoTable {
     slope: Vec<f64>,
     /// `1 − E_avg`, the integral of the interpolated table.
     loss_avg: f64,
+    /// The Fresnel-like weight of a shared weighted table ([`AlbedoTable::cached_weighted`]);
+    /// `None` for the plain table and for uncached weighted tables.
+    weight: Option<WeightKey>,
+}
+
+/// Names a weight function `w(cos)` of [`AlbedoTable::cached_weighted`] so that tables of the
+/// same function are shared: a label chosen by the caller and up to four parameters (compared
+/// bit for bit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WeightKey {
+    /// What the function is (e.g. `"dielectric"`), unique per formula.
+    pub name: &'static str,
+    /// Its parameters as `f64::to_bits` (e.g. the index of refraction), unused ones 0.
+    pub params: [u64; 4],
+}
+
+impl WeightKey {
+    /// A key for `name` with up to four real parameters (further ones are ignored).
+    #[must_use]
+    pub fn new(name: &'static str, params: &[f64]) -> Self {
+        let mut bits = [0u64; 4];
+        for (b, p) in bits.iter_mut().zip(params) {
+            *b = p.to_bits();
+        }
+        Self { name, params: bits }
+    }
 }
 
 /// Directional albedo `E(wo)` of the single-scattering microfacet BRDF with `F = 1`,
@@ -101,6 +135,20 @@ pub struct AlbedoTable {
 /// normals whose mirror `wi` lies above the horizon ([`visible_normal_integral`]).
 #[must_use]
 pub fn directional_albedo(mf: &Microfacet<f64>, masking: MaskingKind, wo: Vec3<f64>) -> f64 {
+    directional_albedo_weighted(mf, masking, wo, &|_| 1.0)
+}
+
+/// Directional albedo of the single-scattering microfacet BRDF with the Fresnel-like factor
+/// `weight(wo·m)`, `w D G / (4 cos θi cos θo)`: [`directional_albedo`] with the integrand
+/// multiplied by `weight` (a smooth function of the angle on the microfacet for the rule to stay
+/// accurate; kinks of `weight` are not resolved).
+#[must_use]
+pub fn directional_albedo_weighted(
+    mf: &Microfacet<f64>,
+    masking: MaskingKind,
+    wo: Vec3<f64>,
+    weight: &dyn Fn(f64) -> f64,
+) -> f64 {
     let mut conics = Vec::new();
     let vgroove = masking == MaskingKind::VGroove;
     if vgroove {
@@ -123,7 +171,7 @@ pub fn directional_albedo(mf: &Microfacet<f64>, masking: MaskingKind, wo: Vec3<f
             let wi = reflect(wo, m);
             let g1o = mf.g1(wo, m);
             if wi.z > 0.0 && g1o > 0.0 {
-                mf.g(wi, wo, m, masking) / g1o
+                mf.g(wi, wo, m, masking) / g1o * weight(wo.dot(m).clamp(0.0, 1.0))
             } else {
                 0.0
             }
@@ -550,6 +598,20 @@ impl AlbedoTable {
     /// the cost; prefer [`AlbedoTable::cached`]).
     #[must_use]
     pub fn new(kind: DistributionKind, masking: MaskingKind, alpha_x: f64, alpha_y: f64) -> Self {
+        Self::weighted(kind, masking, alpha_x, alpha_y, &|_| 1.0)
+    }
+
+    /// The table of `1 − E_w` for a Fresnel-like weight `w(cos) ∈ [0, 1]` of the angle on the
+    /// microfacet (see the module docs); [`AlbedoTable::new`] is the weight 1. Costs as much
+    /// as the plain table; prefer [`AlbedoTable::cached_weighted`] for shared weights.
+    #[must_use]
+    pub fn weighted(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Self {
         let mf = Microfacet::new(kind, alpha_x, alpha_y);
         let n_phi = if alpha_x == alpha_y { 1 } else { N_PHI_ANISO };
         let mut loss = vec![0.0; n_phi * N_MU];
@@ -567,7 +629,7 @@ impl AlbedoTable {
                 let mu = mu_of_s(e, s).clamp(MU_MIN, 1.0);
                 let sin = (1.0 - mu * mu).max(0.0).sqrt();
                 let wo = Vec3::new(sin * phi.cos(), sin * phi.sin(), mu);
-                let e = directional_albedo(&mf, masking, wo);
+                let e = directional_albedo_weighted(&mf, masking, wo, weight);
                 loss[k * N_MU + j] = (1.0 - e).clamp(0.0, 1.0);
             }
         }
@@ -576,7 +638,19 @@ impl AlbedoTable {
             let row = &loss[k * N_MU..(k + 1) * N_MU];
             monotone_slopes(row, 1.0 / (N_MU - 1) as f64, &mut slope[k * N_MU..(k + 1) * N_MU]);
         }
-        let mut table = Self { kind, masking, alpha_x, alpha_y, eps, inv_log_span, n_phi, loss, slope, loss_avg: 0.0 };
+        let mut table = Self {
+            kind,
+            masking,
+            alpha_x,
+            alpha_y,
+            eps,
+            inv_log_span,
+            n_phi,
+            loss,
+            slope,
+            loss_avg: 0.0,
+            weight: None,
+        };
         table.loss_avg = table.integrate_loss();
         table
     }
@@ -585,15 +659,41 @@ impl AlbedoTable {
     /// of the most recently used tables).
     #[must_use]
     pub fn cached(kind: DistributionKind, masking: MaskingKind, alpha_x: f64, alpha_y: f64) -> Arc<Self> {
+        Self::cached_with(kind, masking, alpha_x, alpha_y, None, &|_| 1.0)
+    }
+
+    /// A shared weighted table ([`AlbedoTable::weighted`]) for these exact parameters and the
+    /// weight named by `key`; `weight` must be the same function whenever the key is.
+    #[must_use]
+    pub fn cached_weighted(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        key: WeightKey,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Arc<Self> {
+        Self::cached_with(kind, masking, alpha_x, alpha_y, Some(key), weight)
+    }
+
+    fn cached_with(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        key: Option<WeightKey>,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Arc<Self> {
         type Cache = Mutex<Vec<Arc<AlbedoTable>>>;
         static CACHE: OnceLock<Cache> = OnceLock::new();
-        const CAPACITY: usize = 64;
+        const CAPACITY: usize = 256;
         let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
         let same = |t: &AlbedoTable| {
             t.kind == kind
                 && t.masking == masking
                 && t.alpha_x.to_bits() == alpha_x.to_bits()
                 && t.alpha_y.to_bits() == alpha_y.to_bits()
+                && t.weight == key
         };
         if let Ok(c) = cache.lock() {
             if let Some(t) = c.iter().find(|t| same(t)) {
@@ -601,7 +701,9 @@ impl AlbedoTable {
             }
         }
         // Computed outside the lock so other threads are not held up.
-        let table = Arc::new(Self::new(kind, masking, alpha_x, alpha_y));
+        let mut table = Self::weighted(kind, masking, alpha_x, alpha_y, weight);
+        table.weight = key;
+        let table = Arc::new(table);
         if let Ok(mut c) = cache.lock() {
             if c.len() >= CAPACITY {
                 c.remove(0);
@@ -1172,6 +1274,37 @@ mod tests {
     }
 
     /// The lobe is symmetric in its arguments (reciprocity), in both precisions.
+    /// Weighted tables: a constant weight scales the albedo (linearity of the integral), and
+    /// for a nearly smooth surface the Fresnel-weighted albedo is the Fresnel reflectance at
+    /// the viewing angle (the mirror limit; 4 % for glass at normal incidence).
+    #[test]
+    fn weighted_tables_scale_and_reach_the_mirror_limit() {
+        let plain = AlbedoTable::new(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 0.4, 0.4);
+        let half = AlbedoTable::weighted(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 0.4, 0.4, &|_| 0.5);
+        for mu in [1.0, 0.6, 0.2, 0.03] {
+            let w = dir(mu, 0.0);
+            assert!((half.e(w) - 0.5 * plain.e(w)).abs() < 1e-12, "μ {mu}");
+        }
+        let key = WeightKey::new("test_dielectric", &[1.5]);
+        let smooth =
+            AlbedoTable::cached_weighted(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 2e-3, 2e-3, key, &|c| {
+                crate::fresnel::dielectric(c, 1.5)
+            });
+        assert!((smooth.e(dir(1.0, 0.0)) - 0.04).abs() < 1e-4, "{}", smooth.e(dir(1.0, 0.0)));
+        let mu: f64 = 0.5;
+        assert!((smooth.e(dir(mu, 0.0)) - crate::fresnel::dielectric(mu, 1.5)).abs() < 1e-3);
+        // The same key returns the same shared table.
+        let again = AlbedoTable::cached_weighted(
+            DistributionKind::Ggx,
+            MaskingKind::HeightCorrelated,
+            2e-3,
+            2e-3,
+            key,
+            &|_| 0.0,
+        );
+        assert!(Arc::ptr_eq(&smooth, &again));
+    }
+
     #[test]
     fn compensation_lobe_is_reciprocal() {
         let t = AlbedoTable::new(DistributionKind::Ggx, MaskingKind::Separable, 0.2, 0.7);

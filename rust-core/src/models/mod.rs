@@ -79,6 +79,7 @@ models! {
     OrenNayar(oren_nayar::OrenNayar),
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
     Phong(phong::Phong),
+    Principled(principled::Principled),
     RoughConductor(rough_conductor::RoughConductor),
     RoughPlastic(rough_plastic::RoughPlastic),
     TorranceSparrow(torrance_sparrow::TorranceSparrow),
