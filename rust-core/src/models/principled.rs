@@ -84,7 +84,7 @@
 //! Barla 2017 (thin-film iridescence).
 
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
-use crate::energy_compensation::{fresnel_average, AlbedoTable, WeightKey};
+use crate::energy_compensation::{fresnel_average, AlbedoTable, TableRequest, WeightKey};
 use crate::error::Error;
 use crate::frame::{half_vector, mirror_z};
 use crate::fresnel;
@@ -310,6 +310,26 @@ struct LobeAlbedo {
     f_ms: [f64; 3],
 }
 
+/// A Fresnel-like weight of an albedo table.
+type Weight<'a> = Box<dyn Fn(f64) -> f64 + 'a>;
+
+/// One table request per channel of `f` (for curves not linear in the colour inputs), keyed
+/// by `names[c]` and `key(c)`, each contributing to its own channel.
+fn channel_requests<'a>(
+    f: &'a Fresnel,
+    names: [&'static str; 3],
+    key: impl Fn(usize) -> Vec<f64>,
+) -> Vec<(Option<WeightKey>, Weight<'a>, [f64; 3])> {
+    (0..3)
+        .map(|c| {
+            let mut unit = [0.0; 3];
+            unit[c] = 1.0;
+            let w: Weight<'a> = Box::new(move |cos| f.channel(c, cos));
+            (Some(WeightKey::new(names[c], &key(c))), w, unit)
+        })
+        .collect()
+}
+
 /// One GGX reflection lobe (isotropic), or a mirror.
 #[derive(Clone, Debug)]
 struct Lobe {
@@ -327,32 +347,22 @@ impl Lobe {
         if alpha * alpha <= SINGULAR_ALPHA2 {
             return Self { alpha: 0.0, fresnel, albedo: None };
         }
-        let e = AlbedoTable::cached(GGX, HEIGHT_CORRELATED, alpha, alpha);
-        let shared = |key: WeightKey, w: &dyn Fn(f64) -> f64| {
-            AlbedoTable::cached_weighted(GGX, HEIGHT_CORRELATED, alpha, alpha, key, w)
-        };
-        // One table per channel, for curves that are not linear in the colour inputs.
-        let per_channel = |names: [&'static str; 3], key: &dyn Fn(usize) -> Vec<f64>| {
-            (0..3)
-                .map(|c| {
-                    let mut unit = [0.0; 3];
-                    unit[c] = 1.0;
-                    (shared(WeightKey::new(names[c], &key(c)), &|cos| fresnel.channel(c, cos)), unit)
-                })
-                .collect::<Vec<_>>()
-        };
-        let terms = match &fresnel {
+        // The tables this lobe needs: `E` first (key `None`), then the Fresnel-weighted ones
+        // with the coefficients that combine them into each channel's albedo. Missing tables
+        // are computed together in one quadrature pass per four.
+        let mut requests: Vec<(Option<WeightKey>, Weight<'_>, [f64; 3])> = vec![(None, Box::new(|_| 1.0), [0.0; 3])];
+        match &fresnel {
             Fresnel::Dielectric { eta } => {
                 let eta = *eta;
-                vec![(shared(WeightKey::new("dielectric", &[eta]), &|c| fresnel::dielectric(c, eta)), [1.0; 3])]
+                let w: Weight<'_> = Box::new(move |c| fresnel::dielectric(c, eta));
+                requests.push((Some(WeightKey::new("dielectric", &[eta])), w, [1.0; 3]));
             }
             Fresnel::Remapped { eta, f0_real, f0 } => {
-                // F = F0·1 + (1 − F0)·s(cos): two shared tables.
+                // F = F0·1 + (1 − F0)·s(cos): the plain table and one shared weighted table.
                 let (eta, f0_real) = (*eta, *f0_real);
-                let s = shared(WeightKey::new("cycles_dielectric_remap", &[eta]), &|c| {
-                    remap(fresnel::dielectric(c, eta), f0_real)
-                });
-                vec![(Arc::clone(&e), *f0), (s, f0.map(|f| 1.0 - f))]
+                requests[0].2 = *f0;
+                let w: Weight<'_> = Box::new(move |c| remap(fresnel::dielectric(c, eta), f0_real));
+                requests.push((Some(WeightKey::new("cycles_dielectric_remap", &[eta])), w, f0.map(|v| 1.0 - v)));
             }
             Fresnel::F82 { f0, b } => {
                 // F = F0·1 + (1 − F0)(1 − cos)⁵ − b·cos(1 − cos)⁶ is linear in F0 and b unless
@@ -366,21 +376,35 @@ impl Lobe {
                     })
                 });
                 if clamped {
-                    per_channel(["f82_r", "f82_g", "f82_b"], &|c| vec![f0[c], b[c]])
+                requests.extend(channel_requests(&fresnel, ["f82_r", "f82_g", "f82_b"], |c| vec![f0[c], b[c]]));
                 } else {
-                    let s5 = shared(WeightKey::new("schlick5", &[]), &|c| (1.0 - c).powi(5));
-                    let mut t = vec![(Arc::clone(&e), *f0), (s5, f0.map(|f| 1.0 - f))];
+                    requests[0].2 = *f0;
+                    let w: Weight<'_> = Box::new(|c| (1.0 - c).powi(5));
+                    requests.push((Some(WeightKey::new("schlick5", &[])), w, f0.map(|v| 1.0 - v)));
                     if b.iter().any(|&v| v != 0.0) {
-                        let dip = shared(WeightKey::new("f82_dip", &[]), &|c| c * (1.0 - c).powi(6));
-                        t.push((dip, b.map(|v| -v)));
+                        let w: Weight<'_> = Box::new(|c| c * (1.0 - c).powi(6));
+                        requests.push((Some(WeightKey::new("f82_dip", &[])), w, b.map(|v| -v)));
                     }
-                    t
                 }
             }
             Fresnel::Film { key, f0, .. } => {
-                per_channel(["film_r", "film_g", "film_b"], &|c| vec![key[0], key[1], key[2], f0[c]])
+                requests.extend(channel_requests(&fresnel, ["film_r", "film_g", "film_b"], |c| {
+                    vec![key[0], key[1], key[2], f0[c]]
+                }));
             }
-        };
+        }
+        let asks: Vec<TableRequest<'_>> =
+            requests.iter().map(|(k, w, _)| (*k, w.as_ref() as &dyn Fn(f64) -> f64)).collect();
+        let tables = AlbedoTable::cached_set(GGX, HEIGHT_CORRELATED, alpha, alpha, &asks);
+        let e = Arc::clone(&tables[0]);
+        let terms: Vec<(Arc<AlbedoTable>, [f64; 3])> = tables
+            .into_iter()
+            .zip(&requests)
+            .filter(|(_, r)| r.2 != [0.0; 3])
+            .map(|(t, r)| (t, r.2))
+            .collect();
+        drop(asks);
+        drop(requests);
         let e_avg = e.e_avg();
         let f_ms = std::array::from_fn(|c| {
             let f_avg = fresnel_average(|mu| fresnel.channel(c, mu));
