@@ -81,6 +81,7 @@ models! {
     OrenNayarQualitative(oren_nayar_qualitative::OrenNayarQualitative),
     Phong(phong::Phong),
     PoulinFournier(poulin_fournier::PoulinFournier),
+    Principled(principled::Principled),
     RoughConductor(rough_conductor::RoughConductor),
     RoughPlastic(rough_plastic::RoughPlastic),
     Stam(stam::Stam),
