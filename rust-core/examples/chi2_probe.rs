@@ -15,7 +15,10 @@ fn main() {
     for seed in 0..3 {
         cfg.seed = seed;
         for c in chi2_test(&m, &cfg) {
-            println!("seed {seed} cos {} chi2 {:.1} dof {} p {:.4} int {:.5} outside {:.5} {}", c.cos_theta, c.chi2, c.dof, c.p_value, c.pdf_integral, c.outside_fraction, c.note);
+            println!(
+                "seed {seed} cos {} chi2 {:.1} dof {} p {:.4} int {:.5} outside {:.5} {}",
+                c.cos_theta, c.chi2, c.dof, c.p_value, c.pdf_integral, c.outside_fraction, c.note
+            );
         }
     }
 }

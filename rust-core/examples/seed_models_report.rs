@@ -15,7 +15,9 @@ const AL_ETA: [f64; 3] = [1.65746, 0.880369, 0.521229];
 const AL_K: [f64; 3] = [9.22387, 6.26952, 4.837];
 
 fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" ")).unwrap_or_default()
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
 }
 
 /// Direction pairs: half uniform, half sampled from the material (so lobes are exercised).
