@@ -492,7 +492,13 @@ impl Stam {
             let sd = 1.0 / (kappa * r2.sqrt());
             let span = 7.0 * sd;
             let scale = self.pitch * r2 / u.abs();
-            let (lo_n, hi_n) = (((t_lo - span) * scale).ceil().max(1.0), ((t_hi + span) * scale).floor());
+            let (lo_n, mut hi_n) = (((t_lo - span) * scale).ceil().max(1.0), ((t_hi + span) * scale).floor());
+            // The exponent never falls below its value at the centre, ½κ²(n/a)²v²/r²: orders
+            // for which that exceeds the nodes' cut-off (700) contribute exactly nothing, and
+            // without this bound a tiny |u| would visit ~1/|u| of them.
+            if v != 0.0 {
+                hi_n = hi_n.min((1400.0f64.sqrt() * self.pitch * r2.sqrt() / (kappa * v.abs())).floor());
+            }
             let mut na = lo_n;
             while na <= hi_n {
                 let n = if u > 0.0 { na } else { -na } as i32;
