@@ -42,6 +42,9 @@ pub struct RenderSettings {
     /// Jitter camera rays over the pixel (box filter); without, every ray goes through the
     /// pixel centre (analytic tests).
     pub jitter: bool,
+    /// Camera rays that miss every surface see nothing (black, alpha 0) instead of the
+    /// environment: a transparent film, for compositing.
+    pub transparent: bool,
 }
 
 impl Default for RenderSettings {
@@ -57,6 +60,7 @@ impl Default for RenderSettings {
             rr_depth: 3,
             clamp: 0.0,
             jitter: true,
+            transparent: false,
         }
     }
 }
@@ -222,6 +226,9 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
     let mut depth = 0u32;
     loop {
         let Some(hit) = scene.intersect(&ray) else {
+            if depth == 0 && set.transparent {
+                break;
+            }
             for &li in scene.infinite_lights() {
                 let light = &scene.lights[li as usize];
                 let le = light.escaped(ray.d);
