@@ -45,6 +45,10 @@ fi
 
 work="$(mktemp -d "${TMPDIR:-/tmp}/lacquer-ext-build.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
+# The release profile keeps debug info (for profiling); the wheel does not need it.
+cp "$lib" "$work/liblacquer.so"
+if command -v strip >/dev/null 2>&1; then strip --strip-debug "$work/liblacquer.so"; fi
+lib="$work/liblacquer.so"
 log "=== lacquer wheel"
 cp -r "$root/c-api/python" "$work/pysrc"
 rm -rf "$work/pysrc/tests" "$work/pysrc/build" "$work/pysrc/dist" "$work/pysrc"/*.egg-info

@@ -239,9 +239,12 @@ def light_desc(light, matrix, report: Report) -> list:
             return [{"type": "point", "position": _point(pos), "intensity": intensity}]
         if radius > 0:
             report.warn(f"light \"{light.name}\": spot radius {radius:g} m rendered as a point (sharp shadows)")
-        half = 0.5 * math.degrees(float(light.spot_size))
+        # Cycles: smoothstep over cos θ from cos(half) to cos(half) + (1 − cos(half))·blend.
+        half = 0.5 * float(light.spot_size)
+        cos_outer = math.cos(half)
+        inner = math.acos(min(1.0, cos_outer + (1.0 - cos_outer) * float(light.spot_blend)))
         return [{"type": "spot", "position": _point(pos), "target": _point(pos + down), "intensity": intensity,
-                 "cone_deg": half, "blend_deg": half * float(light.spot_blend)}]
+                 "cone_deg": math.degrees(half), "blend_deg": math.degrees(half - inner)}]
     if light.type == "AREA":
         sx = float(light.size)
         sy = float(light.size_y) if light.shape in {"RECTANGLE", "ELLIPSE"} else sx
@@ -353,8 +356,8 @@ def world_desc(world, report: Report, temp_files: list) -> list:
             return []
         if path.startswith(tempfile.gettempdir()) and os.path.basename(path).startswith("lacquer-env-"):
             temp_files.append(path)
-        # Blender's lat-long centre (u = 0.5) faces −Y; the renderer's faces its −z, which is
-        # Blender's +Y: a half turn about the up axis, plus the mapping's Z rotation.
+        # Blender's lat-long u = 1/2 − atan2(y, x)/2π; the renderer's u = 1/2 + atan2(x, −z)/2π
+        # in its y-up frame: a quarter turn apart, plus the mapping's Z rotation.
         return [{"type": "environment", "map": path, "scale": strength,
                  "rotation_deg": ENV_ROTATION_OFFSET_DEG + rotation}]
     report.warn(f"world \"{world.name}\": {src.bl_idname} into the Background is not supported; using the "
@@ -362,8 +365,9 @@ def world_desc(world, report: Report, temp_files: list) -> list:
     return [{"type": "environment", "radiance": [strength * c for c in _vec(color_in.default_value)[:3]]}]
 
 
-#: Rotation (degrees about up) that aligns the renderer's lat-long convention with Blender's.
-ENV_ROTATION_OFFSET_DEG = 180.0
+#: Rotation (degrees about up) that aligns the renderer's lat-long convention with Blender's
+#: (measured: background pixels in six directions, with and without a Mapping rotation, agree).
+ENV_ROTATION_OFFSET_DEG = 90.0
 
 
 # --- camera ----------------------------------------------------------------------------------

@@ -1,0 +1,282 @@
+"""Test and README scenes for the Lacquer extension, rendered with Cycles and with LACQUER.
+
+Runs in a Python that has bpy (scripts/blender-env.sh makes one); installs the extension zip
+into the user resources folder given by $BLENDER_USER_RESOURCES (set it to a temporary
+folder: it must be set before bpy starts), enables it, builds each scene from factory
+settings, assigns presets with the extension's operator, renders, and writes EXRs and a JSON
+report (timings, fit, engine messages).
+
+    BLENDER_USER_RESOURCES=$(mktemp -d) .venv-blender/bin/python blender-addon/scripts/scenes.py \
+        --zip dist/lacquer-0.1.0.zip --out out/ --size 128 --spp 16 --scenes compare,density
+
+Scenes:
+  compare   gold_flake_8 on a 10 cm sphere, uniform world and a soft area light, film transparent
+  density   a 2 cm plate filling the frame, looked at from above, a sun 20° off the view
+            direction: gold_flake_0, _2, _8 (sparkle grows with density)
+  readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
+            also writes a side-by-side PNG (Cycles | LACQUER) with --png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import bpy
+
+ADDON = "bl_ext.user_default.lacquer"
+
+
+def install(zip_path: str) -> dict:
+    t = time.perf_counter()
+    if ADDON not in bpy.context.preferences.addons:
+        r = bpy.ops.extensions.package_install_files(filepath=os.path.abspath(zip_path), repo="user_default",
+                                                     enable_on_install=True)
+        if r != {"FINISHED"} or ADDON not in bpy.context.preferences.addons:
+            raise SystemExit(f"installing {zip_path} failed: {r}")
+    return {"install_seconds": time.perf_counter() - t}
+
+
+def uninstall():
+    # bpy 4.5 may hang at exit while the extension's classes are registered.
+    if ADDON in bpy.context.preferences.addons:
+        bpy.ops.preferences.addon_disable(module=ADDON)
+
+
+def fresh_scene(size: int, spp: int):
+    # Not read_factory_settings: that would also reset the preferences and so the extension.
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights, bpy.data.cameras,
+                 bpy.data.worlds, bpy.data.node_groups, bpy.data.images):
+        for item in list(coll):
+            coll.remove(item)
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = True
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.image_settings.exr_codec = "ZIP"
+    scene.view_settings.view_transform = "Standard"
+    scene.render.threads_mode = "AUTO"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = spp
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.max_bounces = 8
+    c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.caustics_reflective = c.caustics_refractive = True
+    c.filter_type = "BOX"
+    c.filter_width = 1.0
+    c.seed = 0
+    scene.lacquer.samples = spp
+    scene.lacquer.max_depth = 8
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    return scene
+
+
+def set_world(scene, color, strength=1.0):
+    w = scene.world
+    if hasattr(w, "use_nodes"):
+        w.use_nodes = True
+    bg = next(n for n in w.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+
+
+def add_camera(scene, location, target, lens=50.0):
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    cam.data.lens = lens
+    cam.location = location
+    direction = (target[0] - location[0], target[1] - location[1], target[2] - location[2])
+    from mathutils import Vector
+
+    cam.rotation_euler = Vector(direction).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    return cam
+
+
+def add_light(scene, kind, location, target=None, energy=10.0, **attrs):
+    data = bpy.data.lights.new(kind.title(), kind)
+    data.energy = energy
+    for k, v in attrs.items():
+        setattr(data, k, v)
+    ob = bpy.data.objects.new(kind.title(), data)
+    scene.collection.objects.link(ob)
+    ob.location = location
+    if target is not None:
+        from mathutils import Vector
+
+        ob.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    return ob
+
+
+def assign(ob, preset):
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    ob.select_set(True)
+    bpy.context.view_layer.objects.active = ob
+    r = bpy.ops.lacquer.assign_paint(preset=preset, new_material=True)
+    assert r == {"FINISHED"}, r
+    return ob.active_material
+
+
+def render(scene, engine: str, path: str) -> dict:
+    scene.render.engine = engine
+    scene.render.filepath = path
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return {"engine": engine, "file": path, "seconds": time.perf_counter() - t}
+
+
+def sphere(scene, radius, location=(0.0, 0.0, 0.0)):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=96, ring_count=48, radius=radius, location=location)
+    ob = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    return ob
+
+
+def scene_compare(size, spp):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    ball = sphere(scene, 0.05)
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    add_light(scene, "AREA", (-0.25, -0.3, 0.35), (0.0, 0.0, 0.0), energy=20.0, shape="RECTANGLE", size=0.2,
+              size_y=0.1)
+    mat = assign(ball, "gold_flake_8")
+    return scene, {"gold_flake_8": mat}
+
+
+def scene_density(size, spp, preset):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.02, 0.02, 0.02))
+    bpy.ops.mesh.primitive_plane_add(size=0.04, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    # 2 cm across the frame: 36 mm sensor, lens f, distance d → d = f/36 mm × 2 cm.
+    add_camera(scene, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0), lens=900.0)
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, preset)
+    return scene, {preset: mat}
+
+
+def scene_readme(size, spp):
+    scene = fresh_scene(size, spp)
+    scene.render.film_transparent = False
+    set_world(scene, (0.35, 0.38, 0.42))
+    ball = sphere(scene, 0.05, (0.0, 0.0, 0.05))
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.0, 0.0))
+    floor = bpy.context.object
+    fm = bpy.data.materials.new("Floor")
+    fm.diffuse_color = (0.18, 0.18, 0.18, 1.0)
+    if hasattr(fm, "use_nodes"):
+        fm.use_nodes = True
+    bsdf = fm.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (0.18, 0.18, 0.18, 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    floor.data.materials.append(fm)
+    add_camera(scene, (0.0, -0.45, 0.16), (0.0, 0.0, 0.045), lens=70.0)
+    add_light(scene, "AREA", (-0.3, -0.25, 0.4), (0.0, 0.0, 0.05), energy=30.0, shape="RECTANGLE", size=0.3,
+              size_y=0.15)
+    add_light(scene, "AREA", (0.35, 0.2, 0.25), (0.0, 0.0, 0.05), energy=12.0, shape="SQUARE", size=0.2)
+    mat = assign(ball, "gold_flake_8")
+    return scene, {"gold_flake_8": mat}
+
+
+def material_info(mat) -> dict:
+    s = mat.lacquer
+    return {"preset": s.preset, "fit_source": s.fit_message,
+            "fit_error": json.loads(s.fit_error) if s.fit_error else None,
+            "fit_inputs": json.loads(s.fit_inputs) if s.fit_inputs else None}
+
+
+def side_by_side_png(left: str, right: str, out: str):
+    """Cycles | LACQUER, view transform of the scene (Standard, sRGB), with a 4-px gap."""
+    import numpy as np
+
+    imgs = []
+    for p in (left, right):
+        im = bpy.data.images.load(p)
+        w, h = im.size
+        px = np.empty(w * h * 4, np.float32)
+        im.pixels.foreach_get(px)
+        imgs.append(px.reshape(h, w, 4))
+    h, w, _ = imgs[0].shape
+    gap = 4
+    canvas = np.ones((h, 2 * w + gap, 4), np.float32)
+    canvas[:, :w] = imgs[0]
+    canvas[:, w + gap:] = imgs[1]
+    canvas[..., 3] = 1.0
+    # Scene-linear → sRGB (Standard view), as the PNG of a render would be.
+    rgb = np.clip(canvas[..., :3], 0.0, 1.0)
+    canvas[..., :3] = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    img = bpy.data.images.new("side_by_side", 2 * w + gap, h, alpha=False)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(canvas.reshape(-1))
+    img.filepath_raw = out
+    img.file_format = "PNG"
+    img.save()
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--zip", required=True, help="the extension zip (blender-addon/build.sh)")
+    ap.add_argument("--out", required=True, help="output folder")
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--scenes", default="compare,density")
+    ap.add_argument("--engines", default="CYCLES,LACQUER")
+    ap.add_argument("--png", help="readme: the side-by-side PNG to write")
+    ap.add_argument("--blend", action="store_true", help="also save each scene as a .blend")
+    a = ap.parse_args(argv)
+    if not os.environ.get("BLENDER_USER_RESOURCES"):
+        raise SystemExit("set BLENDER_USER_RESOURCES to a temporary folder (before bpy starts)")
+    os.makedirs(a.out, exist_ok=True)
+    report = {"bpy": bpy.app.version_string, "size": a.size, "spp": a.spp, "renders": [], "materials": {}}
+    report.update(install(a.zip))
+    engines = a.engines.split(",")
+    try:
+        jobs = []
+        for name in a.scenes.split(","):
+            if name == "compare":
+                jobs.append(("compare", lambda: scene_compare(a.size, a.spp)))
+            elif name == "density":
+                for p in ("gold_flake_0", "gold_flake_2", "gold_flake_8"):
+                    jobs.append((f"density_{p}", lambda p=p: scene_density(a.size, a.spp, p)))
+            elif name == "readme":
+                jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
+            else:
+                raise SystemExit(f"unknown scene {name}")
+        for name, build in jobs:
+            t = time.perf_counter()
+            scene, mats = build()
+            setup = time.perf_counter() - t
+            for k, m in mats.items():
+                report["materials"][k] = material_info(m)
+            if a.blend:
+                bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
+            for engine in engines:
+                path = os.path.join(os.path.abspath(a.out), f"{name}_{engine.lower()}.exr")
+                r = render(scene, engine, path)
+                r.update(scene=name, setup_seconds=setup)
+                report["renders"].append(r)
+                print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
+        if a.png and "readme" in a.scenes.split(","):
+            out = os.path.abspath(a.out)
+            side_by_side_png(os.path.join(out, "readme_cycles.exr"), os.path.join(out, "readme_lacquer.exr"), a.png)
+    finally:
+        with open(os.path.join(a.out, "report.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        uninstall()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
