@@ -13,8 +13,16 @@ Scenes:
   compare   gold_flake_8 on a 10 cm sphere, uniform world and a soft area light, film transparent
   density   a 2 cm plate filling the frame, looked at from above, a sun 20° off the view
             direction: gold_flake_0, _2, _8 (sparkle grows with density)
+  lights    a Diffuse BSDF plate under each light type in turn (point, point with radius and
+            soft falloff off, spot, sun, area rectangle, world colour, world HDRI): the engine's
+            light, world and camera conversions, with an exact material on both sides
+  principled  a sphere with a plain Principled BSDF (coat, metallic, thin film): LACQUER's
+            approximation of non-Lacquer materials by the core's `principled` model
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
             also writes a side-by-side PNG (Cycles | LACQUER) with --png
+
+With --render-blend FILE (no --zip needed, nothing installed) it only opens FILE and renders
+its scene with Cycles into --out: a farm node without the extension.
 """
 
 from __future__ import annotations
@@ -41,10 +49,16 @@ def install(zip_path: str) -> dict:
     return {"install_seconds": time.perf_counter() - t}
 
 
-def uninstall():
+def uninstall() -> dict:
     # bpy 4.5 may hang at exit while the extension's classes are registered.
     if ADDON in bpy.context.preferences.addons:
         bpy.ops.preferences.addon_disable(module=ADDON)
+    return {"unregistered": {
+        "addon_disabled": ADDON not in bpy.context.preferences.addons,
+        "engine_gone": not hasattr(bpy.types, "LacquerRenderEngine"),
+        "operators_gone": not hasattr(bpy.types, "LACQUER_OT_assign_paint"),
+        "material_props_gone": not hasattr(bpy.types.Material, "lacquer"),
+    }}
 
 
 def fresh_scene(size: int, spp: int):
@@ -191,6 +205,101 @@ def scene_readme(size, spp):
     return scene, {"gold_flake_8": mat}
 
 
+def diffuse_material(color=(0.8, 0.8, 0.8)):
+    m = bpy.data.materials.new("Diffuse")
+    if hasattr(m, "use_nodes"):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*color, 1.0)
+    o = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(d.outputs[0], o.inputs["Surface"])
+    return m
+
+
+def env_image(path):
+    """A small procedural lat-long HDRI (sky gradient, a bright sun patch), saved as .hdr."""
+    import numpy as np
+
+    w, h = 128, 64
+    img = bpy.data.images.new("lacquer_test_env", w, h, float_buffer=True)
+    v = (np.arange(h) + 0.5) / h  # bottom to top
+    u = (np.arange(w) + 0.5) / w
+    px = np.zeros((h, w, 4), np.float32)
+    px[..., 0] = 0.2 + 0.6 * v[:, None]
+    px[..., 1] = 0.3 + 0.5 * v[:, None]
+    px[..., 2] = 0.5 + 0.4 * v[:, None] * (0.5 + 0.5 * np.cos(2 * np.pi * u[None, :]))
+    px[44:52, 20:30, :3] = 20.0
+    px[..., 3] = 1.0
+    img.pixels.foreach_set(px.reshape(-1))
+    img.filepath_raw = path
+    img.file_format = "HDR"
+    img.save()
+    bpy.data.images.remove(img)
+    return bpy.data.images.load(path)
+
+
+LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "world_color", "world_hdri")
+
+
+def scene_lights(size, spp, case, out):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.0, 0.0, 0.0), 0.0)
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plate = bpy.context.object
+    plate.data.materials.append(diffuse_material())
+    # Straight down on the plate; every light stays outside the view (LACQUER's area and sphere
+    # lights are surfaces the camera would see, Cycles' are not).
+    add_camera(scene, (0.0, 0.0, 3.0), (0.0, 0.0, 0.0), lens=50.0)
+    if case == "point":
+        add_light(scene, "POINT", (1.0, 0.2, 1.0), energy=100.0, shadow_soft_size=0.0)
+    elif case == "point_radius":
+        light = add_light(scene, "POINT", (1.0, 0.2, 1.0), energy=100.0, shadow_soft_size=0.15)
+        light.data.use_soft_falloff = False
+    elif case == "spot":
+        add_light(scene, "SPOT", (0.9, 0.0, 1.2), (0.2, 0.1, 0.0), energy=150.0, shadow_soft_size=0.0,
+                  spot_size=math.radians(70.0), spot_blend=0.3)
+    elif case == "sun":
+        add_light(scene, "SUN", (1.0, -0.5, 2.0), (0.0, 0.0, 0.0), energy=2.0, angle=math.radians(2.0))
+    elif case == "area":
+        add_light(scene, "AREA", (1.3, 0.5, 0.8), (0.0, 0.0, 0.0), energy=60.0, shape="RECTANGLE", size=0.6,
+                  size_y=0.3)
+    elif case == "world_color":
+        set_world(scene, (0.3, 0.5, 0.7), 1.5)
+    elif case == "world_hdri":
+        w = scene.world
+        nt = w.node_tree
+        bg = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBackground")
+        tex = nt.nodes.new("ShaderNodeTexEnvironment")
+        tex.image = env_image(os.path.join(out, "lights_env.hdr"))
+        tex.interpolation = "Closest"
+        nt.links.new(tex.outputs["Color"], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = 1.0
+    else:
+        raise SystemExit(f"unknown light case {case}")
+    return scene, {}
+
+
+def scene_principled(size, spp):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    add_light(scene, "AREA", (-0.25, -0.3, 0.35), (0.0, 0.0, 0.0), energy=20.0, shape="RECTANGLE", size=0.2,
+              size_y=0.1)
+    ball = sphere(scene, 0.05)
+    m = bpy.data.materials.new("Principled red coat")
+    if hasattr(m, "use_nodes"):
+        m.use_nodes = True
+    p = m.node_tree.nodes.get("Principled BSDF")
+    p.inputs["Base Color"].default_value = (0.6, 0.05, 0.04, 1.0)
+    p.inputs["Roughness"].default_value = 0.35
+    p.inputs["Coat Weight"].default_value = 1.0
+    p.inputs["Coat Roughness"].default_value = 0.1
+    ball.data.materials.append(m)
+    return scene, {}
+
+
 def material_info(mat) -> dict:
     s = mat.lacquer
     return {"preset": s.preset, "fit_source": s.fit_message,
@@ -228,7 +337,8 @@ def side_by_side_png(left: str, right: str, out: str):
 
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--zip", required=True, help="the extension zip (blender-addon/build.sh)")
+    ap.add_argument("--zip", help="the extension zip (blender-addon/build.sh)")
+    ap.add_argument("--render-blend", help="only render this .blend with Cycles (no extension)")
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=16)
@@ -241,6 +351,17 @@ def main(argv):
         raise SystemExit("set BLENDER_USER_RESOURCES to a temporary folder (before bpy starts)")
     os.makedirs(a.out, exist_ok=True)
     report = {"bpy": bpy.app.version_string, "size": a.size, "spp": a.spp, "renders": [], "materials": {}}
+    if a.render_blend:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(a.render_blend))
+        name = os.path.splitext(os.path.basename(a.render_blend))[0]
+        report["addon_enabled"] = ADDON in bpy.context.preferences.addons
+        r = render(bpy.context.scene, "CYCLES", os.path.join(os.path.abspath(a.out), f"{name}_farm_cycles.exr"))
+        report["renders"].append(r)
+        with open(os.path.join(a.out, "report_farm.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        return
+    if not a.zip:
+        raise SystemExit("--zip is required")
     report.update(install(a.zip))
     engines = a.engines.split(",")
     try:
@@ -251,6 +372,11 @@ def main(argv):
             elif name == "density":
                 for p in ("gold_flake_0", "gold_flake_2", "gold_flake_8"):
                     jobs.append((f"density_{p}", lambda p=p: scene_density(a.size, a.spp, p)))
+            elif name == "lights":
+                for c in LIGHT_CASES:
+                    jobs.append((f"lights_{c}", lambda c=c: scene_lights(a.size, a.spp, c, os.path.abspath(a.out))))
+            elif name == "principled":
+                jobs.append(("principled", lambda: scene_principled(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
             else:
@@ -273,9 +399,9 @@ def main(argv):
             out = os.path.abspath(a.out)
             side_by_side_png(os.path.join(out, "readme_cycles.exr"), os.path.join(out, "readme_lacquer.exr"), a.png)
     finally:
+        report.update(uninstall())
         with open(os.path.join(a.out, "report.json"), "w") as f:
             json.dump(report, f, indent=1)
-        uninstall()
 
 
 if __name__ == "__main__":
