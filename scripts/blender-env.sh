@@ -5,9 +5,9 @@
 #   bpy_venv="$(bash scripts/blender-env.sh)" && "$bpy_venv/bin/python" -c 'import bpy'
 #
 # The venv lives in .venv-blender at the repository root (override: LACQUER_BLENDER_VENV).
-# bpy 4.5 (LTS) is built against numpy 1.x, so this venv pins numpy < 2; it is separate from
+# bpy 4.5 (LTS) and 5.0 require numpy < 2, so this venv pins numpy 1.26.4; it is separate from
 # .venv-tests (scripts/python-env.sh: numpy 2, OpenImageIO 3), which the comparisons run in.
-# LACQUER_BPY_VERSION selects another bpy (e.g. 5.0.1; it brings its own numpy pin below).
+# LACQUER_BPY_VERSION selects another bpy (e.g. 5.0.1, with LACQUER_BLENDER_VENV elsewhere).
 # On a fresh Debian machine it installs what headless bpy needs with apt-get (python3-venv,
 # and the X/GL client libraries the bpy wheel links against even when rendering headless).
 # All progress goes to stderr; stdout is only the venv path.
@@ -15,11 +15,7 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 venv="${LACQUER_BLENDER_VENV:-$root/.venv-blender}"
 bpy_version="${LACQUER_BPY_VERSION:-4.5.15}"
-case "$bpy_version" in
-  4.*) numpy_pin="numpy==1.26.4" ;;
-  *) numpy_pin="numpy==2.4.6" ;;
-esac
-pins=("bpy==$bpy_version" "$numpy_pin")
+pins=("bpy==$bpy_version" "numpy==1.26.4")
 stamp="$venv/.lacquer-pins"
 
 log() { printf '%s\n' "$*" >&2; }

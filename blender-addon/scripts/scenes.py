@@ -85,7 +85,10 @@ def fresh_scene(size: int, spp: int):
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     c.caustics_reflective = c.caustics_refractive = True
-    c.filter_type = "BOX"
+    if hasattr(c, "pixel_filter_type"):  # Blender 5.0
+        c.pixel_filter_type = "BOX"
+    else:
+        c.filter_type = "BOX"
     c.filter_width = 1.0
     c.seed = 0
     scene.lacquer.samples = spp
@@ -184,7 +187,7 @@ def scene_density(size, spp, preset):
 def scene_readme(size, spp):
     scene = fresh_scene(size, spp)
     scene.render.film_transparent = False
-    set_world(scene, (0.35, 0.38, 0.42))
+    set_world(scene, (0.22, 0.24, 0.27))
     ball = sphere(scene, 0.05, (0.0, 0.0, 0.05))
     bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.0, 0.0))
     floor = bpy.context.object
@@ -198,9 +201,9 @@ def scene_readme(size, spp):
     bsdf.inputs["Specular IOR Level"].default_value = 0.0
     floor.data.materials.append(fm)
     add_camera(scene, (0.0, -0.45, 0.16), (0.0, 0.0, 0.045), lens=70.0)
-    add_light(scene, "AREA", (-0.3, -0.25, 0.4), (0.0, 0.0, 0.05), energy=30.0, shape="RECTANGLE", size=0.3,
+    add_light(scene, "AREA", (-0.3, -0.25, 0.4), (0.0, 0.0, 0.05), energy=4.0, shape="RECTANGLE", size=0.3,
               size_y=0.15)
-    add_light(scene, "AREA", (0.35, 0.2, 0.25), (0.0, 0.0, 0.05), energy=12.0, shape="SQUARE", size=0.2)
+    add_light(scene, "AREA", (0.35, 0.2, 0.25), (0.0, 0.0, 0.05), energy=1.5, shape="SQUARE", size=0.2)
     mat = assign(ball, "gold_flake_8")
     return scene, {"gold_flake_8": mat}
 
