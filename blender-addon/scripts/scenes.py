@@ -16,6 +16,8 @@ Scenes:
   lights    a Diffuse BSDF plate under each light type in turn (point, point with radius and
             soft falloff off, spot, sun, area rectangle, world colour, world HDRI): the engine's
             light, world and camera conversions, with an exact material on both sides
+  instances collection instances (rotated, non-uniformly scaled), a two-material cube with a
+            bevel modifier and its linked duplicate, Diffuse BSDFs: transforms and instancing
   principled  a sphere with a plain Principled BSDF (coat, metallic, thin film): LACQUER's
             approximation of non-Lacquer materials by the core's `principled` model
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
@@ -284,6 +286,48 @@ def scene_lights(size, spp, case, out):
     return scene, {}
 
 
+def scene_instances(size, spp):
+    """Collection instances with rotations and non-uniform scales, a two-material cube with a
+    modifier and its linked duplicate: transforms, instancing, material slots, evaluated meshes."""
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    add_light(scene, "SUN", (1.0, -0.6, 1.5), (0.0, 0.0, 0.0), energy=2.0, angle=math.radians(1.0))
+    add_camera(scene, (0.0, -9.0, 4.5), (0.0, 0.0, 0.3), lens=35.0)
+    proto = bpy.data.collections.new("Proto")
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
+    ball = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    for c in list(ball.users_collection):
+        c.objects.unlink(ball)
+    proto.objects.link(ball)
+    ball.data.materials.append(diffuse_material((0.7, 0.15, 0.1)))
+    for k, (loc, rot, scale) in enumerate((((-2.5, 0.0, 0.6), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+                                           ((-1.2, 1.5, 0.6), (0.4, 0.2, 0.7), (1.6, 0.7, 1.0)),
+                                           ((-2.8, 2.2, 1.6), (0.0, 0.9, 0.0), (0.5, 0.5, 0.5)))):
+        empty = bpy.data.objects.new(f"Instance{k}", None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = proto
+        empty.location, empty.rotation_euler, empty.scale = loc, rot, scale
+        scene.collection.objects.link(empty)
+    bpy.ops.mesh.primitive_cube_add(size=1.2, location=(1.5, 0.0, 0.8), rotation=(0.3, 0.2, 0.6))
+    cube = bpy.context.object
+    cube.scale = (1.0, 1.5, 0.8)
+    cube.data.materials.append(diffuse_material((0.1, 0.6, 0.2)))
+    cube.data.materials.append(diffuse_material((0.15, 0.25, 0.8)))
+    for poly in cube.data.polygons:
+        poly.material_index = poly.index % 2
+    bevel = cube.modifiers.new("Bevel", "BEVEL")
+    bevel.width = 0.1
+    bevel.segments = 3
+    twin = cube.copy()  # linked duplicate: same mesh data
+    twin.location = (2.8, 2.0, 0.9)
+    twin.rotation_euler = (0.0, 0.0, -0.5)
+    scene.collection.objects.link(twin)
+    bpy.ops.mesh.primitive_plane_add(size=12.0)
+    bpy.context.object.data.materials.append(diffuse_material((0.5, 0.5, 0.5)))
+    return scene, {}
+
+
 def scene_principled(size, spp):
     scene = fresh_scene(size, spp)
     set_world(scene, (0.5, 0.5, 0.5))
@@ -380,6 +424,8 @@ def main(argv):
                     jobs.append((f"lights_{c}", lambda c=c: scene_lights(a.size, a.spp, c, os.path.abspath(a.out))))
             elif name == "principled":
                 jobs.append(("principled", lambda: scene_principled(a.size, a.spp)))
+            elif name == "instances":
+                jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
             else:

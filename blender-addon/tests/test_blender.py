@@ -68,7 +68,7 @@ def _run(args, resources, timeout=900):
 def renders():
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
     log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
-                "--scenes", "compare,density,lights,principled", "--blend"], out / "user-resources")
+                "--scenes", "compare,density,lights,instances,principled", "--blend"], out / "user-resources")
     report = json.loads((out / "report.json").read_text())
     yield {"dir": out, "report": report, "log": log}
     (out / "figures.json").write_text(json.dumps(FIGURES, indent=1))
@@ -185,6 +185,21 @@ def test_lights_and_world_match_cycles(renders, case):
                                               "rel": round(rel, 5)}
     assert mc.min() > 1e-3, mc
     assert rel <= LIGHTS_TOL, (case, mc, ml)
+
+
+def test_instances_transforms_and_material_slots(renders):
+    """Collection instances (rotated, non-uniform scale), a two-material beveled cube and its
+    linked duplicate: the same pixels are covered and the image means agree."""
+    d = renders["dir"]
+    cyc, lq = read_exr(d / "instances_cycles.exr"), read_exr(d / "instances_lacquer.exr")
+    a, b = cyc[..., 3] > 0.5, lq[..., 3] > 0.5
+    iou = float((a & b).sum() / (a | b).sum())
+    mc, ml = cyc[..., :3].mean(axis=(0, 1)), lq[..., :3].mean(axis=(0, 1))
+    rel = float(np.max(np.abs(ml - mc) / mc))
+    FIGURES["instances"] = {"coverage_iou": round(iou, 5), "cycles": mc.round(5).tolist(),
+                            "lacquer": ml.round(5).tolist(), "rel": round(rel, 5)}
+    assert iou > 0.995, FIGURES["instances"]
+    assert rel < LIGHTS_TOL, FIGURES["instances"]
 
 
 def test_principled_materials_are_approximated_with_a_message(renders):
