@@ -11,9 +11,10 @@ point/spot/sun/area lights, the world, and the materials. The conversions:
   point light masked by its cone (blend = the smooth fraction of the cone), a sun's strength is
   its irradiance in W/m², an area light of power P and area A has radiance P/(πA).
 * **Sparkle uv**: the renderer's sparkle needs uv in physical units. Every triangle gets its own
-  planar uv, the object-space coordinates of its corners in an orthonormal frame of its plane,
-  so one uv unit is one object-space metre everywhere (no distortion, whatever UV map the mesh
-  has); ``surface_scale_mm`` = 1000 × the instance's scale. Flakes then have their true size.
+  planar uv: its corners' object coordinates × the instance's per-axis scale (metres on the
+  object, as the node group's Voronoi cells use), in an orthonormal frame of its plane. One uv
+  unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` = 1000), so
+  flakes have their true size and stick to the object.
 * **Materials**: a Lacquer material is its paint parameters exactly; any other material is
   read from its Principled BSDF into ``{"model": "principled", ...}`` (a Diffuse BSDF into
   ``lambert``), with a message naming what was approximated.
@@ -73,9 +74,10 @@ def _b64(a: np.ndarray, dtype) -> str:
 # --- meshes ----------------------------------------------------------------------------------
 
 
-def _mesh_arrays(mesh) -> dict:
-    """Unwelded triangle arrays of an evaluated mesh: per-corner positions, normals and planar uv
-    (object space), and the material index of each triangle."""
+def _mesh_arrays(mesh, axis_scale) -> dict:
+    """Unwelded triangle arrays of an evaluated mesh: per-corner positions and normals (object
+    space), planar uv in metres (object space × the instance's per-axis scale), and the material
+    index of each triangle."""
     mesh.calc_loop_triangles()
     tris = mesh.loop_triangles
     n = len(tris)
@@ -96,9 +98,10 @@ def _mesh_arrays(mesh) -> dict:
     else:  # pragma: no cover (4.0)
         mesh.loops.foreach_get("normal", corner_n)
     corner_n = corner_n.reshape(-1, 3)
-    p = co[verts].reshape(n, 3, 3).astype(np.float64)
+    p_obj = co[verts].reshape(n, 3, 3)
     nrm = corner_n[loops].reshape(n, 3, 3)
-    # Planar uv per triangle: coordinates in an orthonormal frame (t, b) of its plane.
+    # Planar uv per triangle: coordinates (metres) in an orthonormal frame (t, b) of its plane.
+    p = p_obj.astype(np.float64) * np.asarray(axis_scale, np.float64)
     ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     length = np.linalg.norm(ng, axis=1, keepdims=True)
     ok = length[:, 0] > 0
@@ -109,7 +112,7 @@ def _mesh_arrays(mesh) -> dict:
     bt = np.cross(ng, t)
     uv = np.stack([np.einsum("tkc,tc->tk", p, t), np.einsum("tkc,tc->tk", p, bt)], axis=-1)
     return {
-        "positions": p.reshape(-1, 3).astype(np.float32),
+        "positions": p_obj.reshape(-1, 3),
         "normals": nrm.reshape(-1, 3),
         "uvs": uv.reshape(-1, 2).astype(np.float32),
         "material_index": mat_index,
@@ -401,11 +404,6 @@ def camera_desc(cam_obj, width: int, height: int, report: Report) -> dict:
 # --- the whole scene ---------------------------------------------------------------------------
 
 
-def _object_scale(matrix) -> float:
-    s = matrix.to_scale()
-    return float(abs(s[0] * s[1] * s[2]) ** (1.0 / 3.0))
-
-
 def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: list) -> dict:
     """The scene of an evaluated depsgraph as the renderer's JSON scene."""
     scene = depsgraph.scene
@@ -425,15 +423,16 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             continue
         if ob.type not in GEOMETRY_TYPES:
             continue
-        key = (ob.name, ob.data.name if ob.data else "", ob.type)
+        axis_scale = tuple(round(float(x), 6) for x in matrix.to_scale())
+        key = (ob.name, ob.data.name if ob.data else "", ob.type, axis_scale)
         if inst.is_instance and ob.type == "MESH":
-            key = ("data", ob.data.as_pointer())
+            key = ("data", ob.data.as_pointer(), axis_scale)
         entry = mesh_cache.get(key)
         if entry is None:
             mesh = None
             try:
                 mesh = ob.to_mesh() if ob.type != "MESH" else ob.data
-                arrays = _mesh_arrays(mesh) if mesh is not None else {}
+                arrays = _mesh_arrays(mesh, axis_scale) if mesh is not None else {}
             finally:
                 if ob.type != "MESH" and mesh is not None:
                     ob.to_mesh_clear()
@@ -454,12 +453,11 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
                     mat = slots[idx] if 0 <= idx < len(slots) else None
                     parts.append((name, mat))
             entry = mesh_cache[key] = parts
-        scale_mm = 1000.0 * _object_scale(matrix)
         world = Y_UP @ matrix
         for name, mat in entry:
             desc = material_desc(mat, report)
             if desc.get("model") == "coated_paint":
-                desc = dict(desc, surface_scale_mm=min(max(scale_mm, 1e-3), 1e6))
+                desc = dict(desc, surface_scale_mm=1000.0)  # uv in metres (see _mesh_arrays)
             objects.append({"type": "mesh", "mesh": name, "material": desc,
                             "transform": {"matrix": [_vec(row) for row in world]}})
     lights.extend(world_desc(scene.world, report, temp_files))
