@@ -39,6 +39,7 @@ import time
 import bpy
 
 ADDON = "bl_ext.user_default.lacquer"
+EEVEE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
 
 
 def install(zip_path: str) -> dict:
@@ -51,13 +52,18 @@ def install(zip_path: str) -> dict:
     return {"install_seconds": time.perf_counter() - t}
 
 
+def engine_registered() -> bool:
+    return any(getattr(c, "bl_idname", None) == "LACQUER" and c.is_registered
+               for c in bpy.types.RenderEngine.__subclasses__())
+
+
 def uninstall() -> dict:
     # bpy 4.5 may hang at exit while the extension's classes are registered.
     if ADDON in bpy.context.preferences.addons:
         bpy.ops.preferences.addon_disable(module=ADDON)
     return {"unregistered": {
         "addon_disabled": ADDON not in bpy.context.preferences.addons,
-        "engine_gone": not hasattr(bpy.types, "LacquerRenderEngine"),
+        "engine_gone": not engine_registered(),
         "operators_gone": not hasattr(bpy.types, "LACQUER_OT_assign_paint"),
         "material_props_gone": not hasattr(bpy.types.Material, "lacquer"),
     }}
@@ -393,6 +399,7 @@ def main(argv):
     ap.add_argument("--engines", default="CYCLES,LACQUER")
     ap.add_argument("--png", help="readme: the side-by-side PNG to write")
     ap.add_argument("--blend", action="store_true", help="also save each scene as a .blend")
+    ap.add_argument("--eevee", action="store_true", help="also render the compare scene with EEVEE")
     a = ap.parse_args(argv)
     if not os.environ.get("BLENDER_USER_RESOURCES"):
         raise SystemExit("set BLENDER_USER_RESOURCES to a temporary folder (before bpy starts)")
@@ -410,6 +417,7 @@ def main(argv):
     if not a.zip:
         raise SystemExit("--zip is required")
     report.update(install(a.zip))
+    report["engine_registered"] = engine_registered()
     engines = a.engines.split(",")
     try:
         jobs = []
@@ -438,8 +446,12 @@ def main(argv):
                 report["materials"][k] = material_info(m)
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
-            for engine in engines:
-                path = os.path.join(os.path.abspath(a.out), f"{name}_{engine.lower()}.exr")
+            this = list(engines)
+            if a.eevee and name == "compare":
+                this.append(EEVEE)
+            for engine in this:
+                tag = "eevee" if engine == EEVEE else engine.lower()
+                path = os.path.join(os.path.abspath(a.out), f"{name}_{tag}.exr")
                 r = render(scene, engine, path)
                 r.update(scene=name, setup_seconds=setup)
                 report["renders"].append(r)

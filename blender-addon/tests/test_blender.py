@@ -68,7 +68,7 @@ def _run(args, resources, timeout=900):
 def renders():
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
     log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
-                "--scenes", "compare,density,lights,instances,principled", "--blend"], out / "user-resources")
+                "--scenes", "compare,density,lights,instances,principled", "--blend", "--eevee"], out / "user-resources")
     report = json.loads((out / "report.json").read_text())
     yield {"dir": out, "report": report, "log": log}
     (out / "figures.json").write_text(json.dumps(FIGURES, indent=1))
@@ -99,6 +99,7 @@ def test_zip_is_a_valid_extension(renders):
 
 def test_unregisters_cleanly(renders):
     """Disabling removes the engine, operators and properties (and bpy then exits: no hang)."""
+    assert renders["report"]["engine_registered"] is True
     assert all(renders["report"]["unregistered"].values()), renders["report"]["unregistered"]
 
 
@@ -142,6 +143,17 @@ def test_cycles_and_lacquer_agree_per_region(renders):
               f"{r['rel_channel_max']:.3f}")
     assert worst_lum <= REGION_LUMINANCE_TOL, FIGURES["compare"]
     assert worst_ch <= REGION_CHANNEL_TOL, FIGURES["compare"]
+
+
+def test_eevee_renders_the_node_group(renders):
+    """EEVEE (software GL when headless) renders the same node group close to Cycles."""
+    d = renders["dir"]
+    cyc, ee = read_exr(d / "compare_cycles.exr"), read_exr(d / "compare_eevee.exr")
+    mask = (cyc[..., 3] > 0.999) & (ee[..., 3] > 0.999)
+    mc, me = cyc[mask][:, :3].mean(axis=0), ee[mask][:, :3].mean(axis=0)
+    rel = float(np.max(np.abs(me - mc) / mc))
+    FIGURES["eevee"] = {"cycles": mc.round(4).tolist(), "eevee": me.round(4).tolist(), "rel": round(rel, 4)}
+    assert rel < 0.15, FIGURES["eevee"]
 
 
 def _sparkle_variance(img):
