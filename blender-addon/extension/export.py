@@ -6,6 +6,8 @@ point/spot/sun/area lights, the world, and the materials. The conversions:
 
 * **Axes** (the only place): Blender is z-up, the renderer y-up; ``Y_UP`` maps Blender
   (x, y, z) to renderer (x, z, −y), a rotation, applied to every matrix, point and direction.
+* **Lights** are not surfaces, as in Cycles: the camera does not see area and sphere lights and
+  they cast no shadows; rays that reach them collect their emission (``"surface": false``).
 * **Units**: 1 Blender unit = 1 m. Lights follow Cycles: a point light of power P watts has
   intensity P/(4π) W/sr (a sphere of radiance P/(4π²r²) when its radius r > 0), a spot is a
   point light masked by its cone (blend = the smooth fraction of the cone), a sun's strength is
@@ -238,7 +240,8 @@ def light_desc(light, matrix, report: Report) -> list:
         if light.type == "POINT":
             if radius > 0:
                 radiance = [i / (math.pi * radius * radius) for i in intensity]
-                return [{"type": "sphere", "center": _point(pos), "radius": radius, "radiance": radiance}]
+                return [{"type": "sphere", "center": _point(pos), "radius": radius, "radiance": radiance,
+                         "surface": False}]
             return [{"type": "point", "position": _point(pos), "intensity": intensity}]
         if radius > 0:
             report.warn(f"light \"{light.name}\": spot radius {radius:g} m rendered as a point (sharp shadows)")
@@ -267,7 +270,7 @@ def light_desc(light, matrix, report: Report) -> list:
         corner = pos - ex * (sx / 2) - ey * (sy / 2)
         # Front side = edge_u × edge_v must face the light's −Z: edge_u = y, edge_v = x.
         return [{"type": "rectangle", "corner": _point(corner), "edge_u": _dir(ey * sy), "edge_v": _dir(ex * sx),
-                 "radiance": radiance}]
+                 "radiance": radiance, "surface": False}]
     report.warn(f"light \"{light.name}\": type {light.type} not supported (left out)")
     return []
 

@@ -39,7 +39,10 @@
 //! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
 //! `rectangle` (corner, edge_u, edge_v, radiance, two_sided), `environment` (`map`:
 //! `"studio"`, an `.hdr`/`.exr` lat-long path, or absent for a constant `radiance`; `scale`,
-//! `rotation_deg`). Colours are a number or `[r, g, b]`.
+//! `rotation_deg`). Sphere and rectangle lights are surfaces (the camera sees them, they cast
+//! shadows) unless `"surface": false`, which makes them behave as lights do in Blender's
+//! Cycles: camera rays and shadow rays pass through the emitter, and other rays that reach it
+//! collect its emission (with MIS) and continue behind it. Colours are a number or `[r, g, b]`.
 
 use crate::camera::Camera;
 use crate::env::Environment;
@@ -77,6 +80,9 @@ fn default_up() -> [f64; 3] {
 }
 fn one() -> f64 {
     1.0
+}
+fn yes() -> bool {
+    true
 }
 
 /// The camera.
@@ -345,6 +351,10 @@ pub enum LightDesc {
         radius: f64,
         /// Radiance.
         radiance: ColorDesc,
+        /// The emitter is a surface (seen by the camera, casting shadows); false: as Cycles'
+        /// lights, camera and shadow rays pass through it.
+        #[serde(default = "yes")]
+        surface: bool,
     },
     /// Rectangular area light.
     Rectangle {
@@ -359,6 +369,10 @@ pub enum LightDesc {
         /// Emit from both sides.
         #[serde(default)]
         two_sided: bool,
+        /// The emitter is a surface (seen by the camera, casting shadows); false: as Cycles'
+        /// lights, camera and shadow rays pass through it.
+        #[serde(default = "yes")]
+        surface: bool,
     },
     /// Environment at infinity.
     Environment {
@@ -666,6 +680,10 @@ impl SceneDesc {
         }
         for (k, l) in self.lights.iter().enumerate() {
             let ctx = |e: String| format!("lights[{k}]: {e}");
+            let surface = match l {
+                LightDesc::Sphere { surface, .. } | LightDesc::Rectangle { surface, .. } => *surface,
+                _ => true,
+            };
             let light = match l {
                 LightDesc::Point { position, intensity } => {
                     Light::Point { position: v3a(*position), intensity: intensity.rgb() }
@@ -684,11 +702,11 @@ impl SceneDesc {
                 LightDesc::Sun { direction, irradiance, angle_deg } => {
                     Light::sun(v3a(*direction), irradiance.rgb(), *angle_deg as f32)
                 }
-                LightDesc::Sphere { center, radius, radiance } => Light::Sphere {
+                LightDesc::Sphere { center, radius, radiance, .. } => Light::Sphere {
                     sphere: Sphere { center: v3a(*center), radius: *radius as f32, uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                 },
-                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided } => Light::Rect {
+                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided, .. } => Light::Rect {
                     quad: Quad { corner: v3a(*corner), edge_u: v3a(*edge_u), edge_v: v3a(*edge_v), uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                     two_sided: *two_sided,
@@ -704,7 +722,11 @@ impl SceneDesc {
                     Light::Env(env)
                 }
             };
-            b.light(light);
+            if surface {
+                b.light(light);
+            } else {
+                b.light_no_surface(light);
+            }
         }
         let c = &self.camera;
         let camera = Camera::look_at(v3a(c.position), v3a(c.look_at), v3a(c.up), c.fov_deg as f32, width, height);
@@ -875,6 +897,45 @@ mod tests {
         assert!(check_matrix(&singular).unwrap_err().contains("invertible"));
         let projective = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 1.0, 1.0]];
         assert!(check_matrix(&projective).unwrap_err().contains("affine"));
+    }
+
+    /// A 1×1 rectangle light (radiance 5) at height 1 above a Lambert floor (albedo 0.5) and a
+    /// sun from straight above (irradiance 1), seen from above through the light. As a surface,
+    /// the light hides the floor (its back is black) and shadows the sun; with `"surface": false`
+    /// the camera sees the floor below it, lit by both: `ρ L F + ρ E/π` with the view factor
+    /// `F` of the square from the point below its centre (four corner rectangles, Howell C-11).
+    #[test]
+    fn lights_that_are_not_surfaces() {
+        let job = |surface: bool| {
+            format!(
+                r#"{{"material": {{"model": "lambert", "albedo": 0.5}}, "width": 9, "height": 9, "spp": 512,
+                "max_depth": 1, "aovs": false,
+                "scene": {{"camera": {{"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov_deg": 2}},
+                  "objects": [{{"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [20, 20],
+                                "material": "paint"}}],
+                  "lights": [{{"type": "rectangle", "corner": [-0.5, 1, -0.5], "edge_u": [1, 0, 0],
+                               "edge_v": [0, 0, 1], "radiance": 5, "surface": {surface}}},
+                             {{"type": "sun", "direction": [0, 1, 0], "irradiance": 1}}]}}}}"#
+            )
+        };
+        let corner = |a: f64, b: f64| {
+            let (sa, sb) = ((1.0 + a * a).sqrt(), (1.0 + b * b).sqrt());
+            (a / sa * (b / sa).atan() + b / sb * (a / sb).atan()) / (2.0 * std::f64::consts::PI)
+        };
+        let expected = 0.5 * 5.0 * 4.0 * corner(0.5, 0.5) + 0.5 / std::f64::consts::PI;
+        let centre = |fb: &crate::Framebuffer| {
+            let mut sum = 0.0;
+            for y in 3..6 {
+                for x in 3..6 {
+                    sum += fb.color[y * 9 + x][0] as f64;
+                }
+            }
+            (sum / 9.0, fb.alpha[4 * 9 + 4])
+        };
+        let (c, a) = centre(&render_job(&job(true), &mut |_| true).unwrap());
+        assert!(c == 0.0 && a == 1.0, "a surface light hides the floor: {c} {a}");
+        let (c, a) = centre(&render_job(&job(false), &mut |_| true).unwrap());
+        assert!(a == 1.0 && (c - expected).abs() < 0.02 * expected, "{c} vs {expected}");
     }
 
     /// Two instances of one named mesh (a unit quad in z = 0), placed by matrices left and right of
