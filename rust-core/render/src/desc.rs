@@ -299,9 +299,9 @@ pub enum ObjectDesc {
         uvs: Option<Packed<f32, 2>>,
         /// Material.
         material: Value,
-        /// Placement.
+        /// Placement (boxed: a matrix makes it large).
         #[serde(default)]
-        transform: Option<TransformDesc>,
+        transform: Option<Box<TransformDesc>>,
         /// Centre above y = 0 and scale to this bounding radius (applied before `transform`).
         #[serde(default)]
         fit_radius: Option<f64>,
