@@ -425,6 +425,8 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             lights.extend(light_desc(ob.data, matrix, report))
             continue
         if ob.type not in GEOMETRY_TYPES:
+            if ob.type in {"VOLUME", "POINTCLOUD", "GPENCIL", "GREASEPENCIL"}:
+                report.warn(f"object \"{ob.name}\": {ob.type.lower()} objects are not rendered by LACQUER")
             continue
         axis_scale = tuple(round(float(x), 6) for x in matrix.to_scale())
         key = (ob.name, ob.data.name if ob.data else "", ob.type, axis_scale)
@@ -436,6 +438,9 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             try:
                 mesh = ob.to_mesh() if ob.type != "MESH" else ob.data
                 arrays = _mesh_arrays(mesh, axis_scale) if mesh is not None else {}
+            except RuntimeError as e:  # e.g. hair curves, which have no mesh
+                report.warn(f"object \"{ob.name}\": no triangles to render ({e})")
+                arrays = {}
             finally:
                 if ob.type != "MESH" and mesh is not None:
                     ob.to_mesh_clear()
@@ -464,6 +469,10 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             objects.append({"type": "mesh", "mesh": name, "material": desc,
                             "transform": {"matrix": [_vec(row) for row in world]}})
     lights.extend(world_desc(scene.world, report, temp_files))
+    if scene.render.use_border:
+        report.warn("render region (border) ignored: the whole frame is rendered")
+    if scene.render.use_motion_blur:
+        report.warn("motion blur ignored")
     if not objects:
         report.warn("the scene has no visible geometry")
     return {"camera": camera_desc(cam_obj, width, height, report), "meshes": meshes, "objects": objects,
