@@ -12,15 +12,16 @@ the core's fit models):
   - **pearl**: Base Color = Pearl Color, Metallic 0, IOR 1.5, Thin Film Thickness / IOR =
     Pearl Film Thickness / IOR, Normal = the pearl flake normal.
 
-* Mixed as ``Mix(Mix(base, pearl, f_pearl), flake, f_flake)``: weights flake ``f_flake``, pearl
-  ``(1 − f_flake) f_pearl``, base ``(1 − f_flake)(1 − f_pearl)``.
+* Mixed as ``Mix(Mix(base, pearl, c_p / (1 − c_f)), flake, c_f)`` (c_f = Flake Coverage,
+  c_p = Pearl Coverage): weights flake ``c_f``, pearl ``c_p``, base ``1 − c_f − c_p``, as the
+  core's fit (docs/blender-fit.md) models the group.
 
 * **Sparkle = 1** (per-cell flakes): the surface is cut into Voronoi cells (3D, F1, randomness 1)
   of object coordinates × the object's scale, i.e. metres on the object. The cell scale is
   ``0.937 / Flake Size`` (per metre): a plane through such a Voronoi diagram has cells of mean
   area ``0.69 / scale²`` = one flake's area ``π (Flake Size)² / 4``. Each cell's three random
   values (the Voronoi Color) decide whether it holds a flake (``r < Flake Coverage``: the flake
-  weight is 1 or 0) and sample its normal from GGX(α = Flake Spread) around N
+  weight is 1 or 0; pearls: ``r < c_p / (1 − c_f)``) and sample its normal from GGX(α = Flake Spread) around N
   (``tan²θ = α² g / (1 − g)``, ``φ = 2π b``); the flake's own roughness is Flake Roughness.
   Pearl flakes use an independent Voronoi (shifted coordinates, Pearl Size, Pearl Coverage,
   Pearl Spread).
@@ -43,7 +44,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 1
+NODE_GROUP_VERSION = 3
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -147,6 +148,7 @@ def _build(group):
 
     geo = b.node("ShaderNodeNewGeometry", -1800, 600)
     N = geo.outputs["Normal"]
+    incoming = geo.outputs["Incoming"]
     texco = b.node("ShaderNodeTexCoord", -1800, 900)
     scale_attr = b.node("ShaderNodeAttribute", -1800, 1100, attribute_type="OBJECT", attribute_name="scale")
     # Object coordinates in metres on the object (× its scale), so flakes stick to the object.
@@ -172,9 +174,6 @@ def _build(group):
         rnd = b.node("ShaderNodeSeparateColor", -1050, y0)
         b.feed(rnd.inputs[0], vor.outputs["Color"])
         r, g, bl = rnd.outputs[0], rnd.outputs[1], rnd.outputs[2]
-        # Weight: 1 in a flake cell, 0 elsewhere (Sparkle 1); the coverage everywhere (Sparkle 0).
-        present = b.math("LESS_THAN", r, coverage, x=-850, y=y0 + 100)
-        weight = b.mix("FLOAT", sparkle, coverage, present, x=-650, y=y0 + 100)
         # Flake normal ~ GGX(α): tan²θ = α² g / (1 − g), φ = 2π b.
         a2 = b.math("MULTIPLY", spread, spread, x=-850, y=y0 - 50)
         odds = b.math("DIVIDE", g, b.math("ADD", b.math("MULTIPLY", g, -1.0, x=-1000, y=y0 - 120), 1.0 + 1e-6,
@@ -190,6 +189,27 @@ def _build(group):
                             b.vmath("SCALE", Bt, scale=ly, x=-300, y=y0 - 160), x=-200, y=y0 - 140),
                     b.vmath("SCALE", N, scale=cos_t, x=-300, y=y0 - 200), x=-100, y=y0 - 160)
         normal = b.vmath("NORMALIZE", b.mix("VECTOR", sparkle, N, m, x=0, y=y0 - 160), x=100, y=y0 - 160)
+        # Weight: 1 in a flake cell, 0 elsewhere (Sparkle 1); the coverage everywhere (Sparkle 0).
+        # Cells draw normals m from D(m) cos θm, but the viewer sees the normals' visible
+        # distribution G1(I) (I·m) D(m) / (I·N): a flake tilted to m shows its projected area
+        # (I·m)/(N·m) per unit of surface (a Principled closure with Normal = m shades the cell as
+        # if it covered the cell's own projected area I·N), and Smith masking G1(I) (GGX, α =
+        # spread) hides some. So a cell is a flake with probability coverage × G1(I) (I·m) /
+        # ((I·N)(N·m)); the mean over cells is then the mean flake lobe but for the shadowing
+        # toward the light.
+        i_m = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", incoming, m, x=-200, y=y0 + 200), 0.0, x=-100, y=y0 + 200)
+        i_n = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", incoming, N, x=-200, y=y0 + 250), 1e-3, x=-100, y=y0 + 250)
+        # Λ = (√(1 + α² tan²θ) − 1)/2, tan²θ = 1/cos²θ − 1; G1 = 1/(1 + Λ).
+        tan2 = b.math("SUBTRACT", b.math("DIVIDE", 1.0, b.math("MULTIPLY", i_n, i_n, x=-100, y=y0 + 300),
+                                         x=0, y=y0 + 300), 1.0, x=100, y=y0 + 300)
+        lam = b.math("MULTIPLY", b.math("SUBTRACT", b.math("SQRT", b.math("ADD", b.math(
+            "MULTIPLY", a2, tan2, x=200, y=y0 + 300), 1.0, x=300, y=y0 + 300), x=400, y=y0 + 300), 1.0,
+            x=500, y=y0 + 300), 0.5, x=600, y=y0 + 300)
+        g1 = b.math("DIVIDE", 1.0, b.math("ADD", lam, 1.0, x=700, y=y0 + 300), x=800, y=y0 + 300)
+        proj = b.math("MULTIPLY", g1, b.math("DIVIDE", i_m, b.math("MULTIPLY", i_n, cos_t, x=0, y=y0 + 250),
+                                             x=100, y=y0 + 220), x=200, y=y0 + 250)
+        present = b.math("LESS_THAN", r, b.math("MULTIPLY", coverage, proj, x=200, y=y0 + 200), x=300, y=y0 + 150)
+        weight = b.mix("FLOAT", sparkle, coverage, present, x=400, y=y0 + 100)
         # Roughness: the flake's own (Sparkle 1) or the whole distribution's (Sparkle 0).
         fr = I["Flake Roughness"]
         fr4 = b.math("POWER", fr, 4.0, x=-850, y=y0 - 300)
@@ -198,8 +218,11 @@ def _build(group):
         return weight, normal, rough
 
     flake_w, flake_n, flake_r = layer(I["Flake Size"], I["Flake Coverage"], I["Flake Spread"], None, 300)
-    pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], I["Pearl Coverage"], I["Pearl Spread"],
-                                      (37.11, 53.71, 19.31), -500)
+    # Pearls share the area the metal flakes leave: weight c_p / (1 − c_f) under the flake mix,
+    # so that the weights are (1 − c_f − c_p, c_f, c_p) (per cell: that probability).
+    free = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, I["Flake Coverage"], x=-1600, y=-350), 1e-4, x=-1500, y=-350)
+    pearl_cov = b.math("MINIMUM", b.math("DIVIDE", I["Pearl Coverage"], free, x=-1400, y=-350), 1.0, x=-1300, y=-350)
+    pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], pearl_cov, I["Pearl Spread"], (37.11, 53.71, 19.31), -500)
 
     def principled(x, y, label):
         p = b.node("ShaderNodeBsdfPrincipled", x, y)
@@ -311,7 +334,7 @@ def update_material(mat):
             sock.default_value = float(value)
     settings.enabled = True
     settings.fit_inputs = json.dumps(inputs, sort_keys=True)
-    settings.fit_error = json.dumps(error, sort_keys=True) if error is not None else ""
+    settings.fit_error = json.dumps(error, sort_keys=True)
     settings.fit_material = json.dumps(material, sort_keys=True)
     settings.fit_message = source
     pig = inputs.get("Pigment Color", material["base_color"])

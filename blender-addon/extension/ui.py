@@ -57,8 +57,7 @@ class MATERIAL_PT_lacquer(bpy.types.Panel):
         elif s.fit_message:
             box.label(text=s.fit_message, icon="INFO")
         if not fit.available():
-            box.label(text="This lacquer library has no node-group fit: inputs are a direct translation",
-                      icon="ERROR")
+            box.label(text="This lacquer library has no node-group fit: reinstall the extension", icon="ERROR")
         group = bpy.data.node_groups.get(nodegroup.GROUP_NAME)
         if group is not None and group.get("lacquer_version") != nodegroup.NODE_GROUP_VERSION:
             box.label(text="The node group is from another version: press Update", icon="ERROR")

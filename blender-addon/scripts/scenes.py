@@ -446,14 +446,20 @@ def main(argv):
                 report["materials"][k] = material_info(m)
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
-            this = list(engines)
+            this = [(e, e.lower()) for e in engines]
+            if name == "compare" and "CYCLES" in engines:
+                this.append(("CYCLES", "cycles_mean"))  # Sparkle 0: the mean lobe the core fits
             if a.eevee and name == "compare":
-                this.append(EEVEE)
-            for engine in this:
-                tag = "eevee" if engine == EEVEE else engine.lower()
+                this.append((EEVEE, "eevee"))
+            for engine, tag in this:
+                for m in mats.values():
+                    node = m.node_tree.nodes.get("Lacquer Paint")
+                    if node is not None:
+                        fitted = json.loads(m.lacquer.fit_inputs).get("Sparkle", 1.0)
+                        node.inputs["Sparkle"].default_value = 0.0 if tag.endswith("_mean") else fitted
                 path = os.path.join(os.path.abspath(a.out), f"{name}_{tag}.exr")
                 r = render(scene, engine, path)
-                r.update(scene=name, setup_seconds=setup)
+                r.update(scene=name, tag=tag, setup_seconds=setup)
                 report["renders"].append(r)
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
         if a.png and "readme" in a.scenes.split(","):

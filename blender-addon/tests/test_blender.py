@@ -31,10 +31,11 @@ SIZE = int(os.environ.get("LACQUER_BLENDER_SIZE", "128"))
 SPP = int(os.environ.get("LACQUER_BLENDER_SPP", "32"))
 
 #: Cycles (node group, fitted by the core) against LACQUER (the exact model), mean colour per
-#: region of the sphere: the largest relative difference of the region's luminance, and of any
-#: channel, allowed. See blender-addon/README.md for the measured figures.
-REGION_LUMINANCE_TOL = 0.10
-REGION_CHANNEL_TOL = 0.15
+#: region of the sphere: the largest relative difference of a region's luminance, and of any
+#: channel, allowed. "mean": the node group with Sparkle 0, the mean lobe the core fits (its
+#: error is the fit's); "sparkle": Sparkle 1, the per-cell flakes artists render with (adds the
+#: procedural flakes' own deviation from the mean lobe). Measured figures: blender-addon/README.md.
+REGION_TOL = {"mean": (0.12, 0.30), "sparkle": (0.20, 0.45)}
 #: Light and world conversions with an exact material on both sides (Diffuse BSDF = Lambert).
 LIGHTS_TOL = 0.01
 
@@ -117,10 +118,12 @@ def _region_means(img, mask, grid=3, min_pixels=40):
     return out
 
 
-def test_cycles_and_lacquer_agree_per_region(renders):
+@pytest.mark.parametrize("variant", ["mean", "sparkle"])
+def test_cycles_and_lacquer_agree_per_region(renders, variant):
     """gold_flake_8 on a sphere: the node group in Cycles against the exact model in LACQUER."""
     d = renders["dir"]
-    cyc, lq = read_exr(d / "compare_cycles.exr"), read_exr(d / "compare_lacquer.exr")
+    cyc = read_exr(d / ("compare_cycles_mean.exr" if variant == "mean" else "compare_cycles.exr"))
+    lq = read_exr(d / "compare_lacquer.exr")
     mask = (cyc[..., 3] > 0.999) & (lq[..., 3] > 0.999)
     assert mask.sum() > 0.1 * mask.size
     rc, rl = _region_means(cyc, mask), _region_means(lq, mask)
@@ -128,21 +131,24 @@ def test_cycles_and_lacquer_agree_per_region(renders):
     rows = []
     worst_lum = worst_ch = 0.0
     for k in rc:
-        c, l_ = rc[k], rl[k]
-        dl = abs(luminance(c) - luminance(l_)) / luminance(l_)
+        c, l_ = [float(x) for x in rc[k]], [float(x) for x in rl[k]]
+        c, l_ = np.array(c), np.array(l_)
+        dl = float(abs(luminance(c) - luminance(l_)) / luminance(l_))
         dc = float(np.max(np.abs(c - l_) / np.maximum(l_, 1e-3)))
         worst_lum, worst_ch = max(worst_lum, dl), max(worst_ch, dc)
-        rows.append({"region": list(k), "cycles": c.round(4).tolist(), "lacquer": l_.round(4).tolist(),
-                     "rel_luminance": round(float(dl), 4), "rel_channel_max": round(dc, 4)})
-    FIGURES["compare"] = {"regions": rows, "worst_rel_luminance": round(float(worst_lum), 4),
-                          "worst_rel_channel": round(worst_ch, 4),
-                          "fit": renders["report"]["materials"].get("gold_flake_8")}
-    print("\nCycles vs LACQUER, gold_flake_8, per region (row, col): rel. luminance / worst channel")
+        rows.append({"region": list(k), "cycles": [round(float(x), 4) for x in c], "lacquer": [round(float(x), 4) for x in l_],
+                     "rel_luminance": round(dl, 4), "rel_channel_max": round(dc, 4)})
+    FIGURES[f"compare_{variant}"] = {"regions": rows, "worst_rel_luminance": round(worst_lum, 4),
+                                     "worst_rel_channel": round(worst_ch, 4),
+                                     "fit": renders["report"]["materials"].get("gold_flake_8")}
+    print(f"\nCycles ({variant}) vs LACQUER, gold_flake_8, per region (row, col): "
+          "rel. luminance / worst channel")
     for r in rows:
         print(f"  {r['region']}: C {r['cycles']} L {r['lacquer']}  {r['rel_luminance']:.3f} / "
               f"{r['rel_channel_max']:.3f}")
-    assert worst_lum <= REGION_LUMINANCE_TOL, FIGURES["compare"]
-    assert worst_ch <= REGION_CHANNEL_TOL, FIGURES["compare"]
+    tol_lum, tol_ch = REGION_TOL[variant]
+    assert worst_lum <= tol_lum, FIGURES[f"compare_{variant}"]
+    assert worst_ch <= tol_ch, FIGURES[f"compare_{variant}"]
 
 
 def test_eevee_renders_the_node_group(renders):
