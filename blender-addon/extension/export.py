@@ -70,7 +70,8 @@ def _dir(d) -> list:
 
 def _b64(a: np.ndarray, dtype) -> str:
     """Little-endian base64 array, the compact form the scene format accepts for mesh arrays."""
-    return "base64:" + base64.b64encode(np.ascontiguousarray(a, dtype=np.dtype(dtype).newbyteorder("<")).tobytes()).decode()
+    data = np.ascontiguousarray(a, dtype=np.dtype(dtype).newbyteorder("<")).tobytes()
+    return "base64:" + base64.b64encode(data).decode()
 
 
 # --- meshes ----------------------------------------------------------------------------------

@@ -69,7 +69,8 @@ def _run(args, resources, timeout=900):
 def renders():
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
     log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
-                "--scenes", "compare,density,lights,instances,principled", "--blend", "--eevee"], out / "user-resources")
+                "--scenes", "compare,density,lights,instances,principled", "--blend", "--eevee"],
+               out / "user-resources")
     report = json.loads((out / "report.json").read_text())
     yield {"dir": out, "report": report, "log": log}
     (out / "figures.json").write_text(json.dumps(FIGURES, indent=1))
@@ -131,12 +132,12 @@ def test_cycles_and_lacquer_agree_per_region(renders, variant):
     rows = []
     worst_lum = worst_ch = 0.0
     for k in rc:
-        c, l_ = [float(x) for x in rc[k]], [float(x) for x in rl[k]]
-        c, l_ = np.array(c), np.array(l_)
+        c, l_ = rc[k].astype(np.float64), rl[k].astype(np.float64)
         dl = float(abs(luminance(c) - luminance(l_)) / luminance(l_))
         dc = float(np.max(np.abs(c - l_) / np.maximum(l_, 1e-3)))
         worst_lum, worst_ch = max(worst_lum, dl), max(worst_ch, dc)
-        rows.append({"region": list(k), "cycles": [round(float(x), 4) for x in c], "lacquer": [round(float(x), 4) for x in l_],
+        rows.append({"region": list(k), "cycles": [round(float(x), 4) for x in c],
+                     "lacquer": [round(float(x), 4) for x in l_],
                      "rel_luminance": round(dl, 4), "rel_channel_max": round(dc, 4)})
     FIGURES[f"compare_{variant}"] = {"regions": rows, "worst_rel_luminance": round(worst_lum, 4),
                                      "worst_rel_channel": round(worst_ch, 4),
