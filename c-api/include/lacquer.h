@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 2
+#define LQ_ABI_VERSION_MINOR 3
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -549,6 +549,23 @@ lq_status lq_check_model(const char *model,
                          int32_t level,
                          char **out_report,
                          bool *out_passed);
+
+/**
+ * Fits the inputs of the Blender node group `Lacquer Coated Paint` (its mean lobe, built
+ * from Principled BSDFs) to a `coated_paint` material, like `lacquer fit-node-group --json`.
+ *
+ * `material_json` is a coated_paint material (`{"model": "coated_paint", ...}`), a preset
+ * (`{"preset": "<name>"}`) or a bare preset name. On success writes
+ * `{"inputs": {socket name: value}, "error": {albedo_rms, albedo_max, brdf_rel_rms,
+ * brdf_cos_rms, snr_db, seconds}, "fit": {...}}` to `*out_json` (free it with
+ * `lq_string_free`); colours are `[r, g, b]`. On error leaves `*out_json` untouched and
+ * returns LQ_ERR_NULL, LQ_ERR_INVALID_JSON, LQ_ERR_UNKNOWN_NAME or LQ_ERR_INVALID_MATERIAL
+ * (also for a valid material that is not a coated_paint). Takes about 0.1–2 s.
+ *
+ * # Safety
+ * `material_json` is NULL or a NUL-terminated string; `out_json` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_fit_node_group(const char *material_json, char **out_json);
 
 /**
  * Parses a material: `{"model": "<name>", "<param>": value, ...}` or `{"preset": "<name>"}`.

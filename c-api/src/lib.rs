@@ -20,6 +20,7 @@ compile_error!("lacquer-capi must be built with panic = \"unwind\" (its panic bo
 mod arrays;
 pub mod batch;
 pub mod catalog;
+pub mod fit;
 pub mod material;
 pub mod render;
 pub mod status;
@@ -27,6 +28,7 @@ pub mod strings;
 
 pub use batch::*;
 pub use catalog::*;
+pub use fit::*;
 pub use material::*;
 pub use render::*;
 pub use status::lq_status;
@@ -38,7 +40,7 @@ use std::ffi::c_char;
 /// shared library's SONAME (`liblacquer.so.0`).
 pub const LQ_ABI_VERSION_MAJOR: u32 = 0;
 /// ABI minor version: incremented when functions or status codes are added.
-pub const LQ_ABI_VERSION_MINOR: u32 = 2;
+pub const LQ_ABI_VERSION_MINOR: u32 = 3;
 /// The ABI version this header describes: `(major << 16) | minor`. Compare with
 /// `lq_abi_version()` at run time: the majors must be equal and the library's minor at least
 /// the header's.

@@ -47,6 +47,14 @@
 //! inverts a CDF numerically). Tables are cached by their exact parameters
 //! ([`AlbedoTable::cached`]), so materials sharing a roughness share one table.
 //!
+//! ## Fresnel-weighted tables
+//! [`AlbedoTable::weighted`] (and its cached form [`AlbedoTable::cached_weighted`]) tabulate,
+//! on the same nodes and with the same interpolation, `1 − E_w(wo)` for the single-scattering
+//! albedo `E_w(wo) = ∫ w(wo·m) G(wi, wo, m)/G1(wo, m) D_wo(m) dm` weighted by a Fresnel-like
+//! function `w(cos) ∈ [0, 1]` of the angle on the microfacet ([`directional_albedo_weighted`]):
+//! the exact directional albedo of a microfacet lobe with that Fresnel curve, as layered models
+//! (the `principled` model's albedo-scaled layers) need it.
+//!
 //! ## Integrals over visible normals
 //! [`visible_normal_integral`] is the general rule behind [`directional_albedo`]: any
 //! `∫ D_w(m) f(m) dm` over all visible normals or over those whose mirror stays above the
@@ -94,6 +102,36 @@ pub struct AlbedoTable {
     slope: Vec<f64>,
     /// `1 − E_avg`, the integral of the interpolated table.
     loss_avg: f64,
+    /// The Fresnel-like weight of a shared weighted table ([`AlbedoTable::cached_weighted`]);
+    /// `None` for the plain table and for uncached weighted tables.
+    weight: Option<WeightKey>,
+}
+
+/// One request of [`AlbedoTable::cached_set`]: the key of a weight (`None`: the plain table)
+/// and the weight function.
+pub type TableRequest<'a> = (Option<WeightKey>, &'a dyn Fn(f64) -> f64);
+
+/// Names a weight function `w(cos)` of [`AlbedoTable::cached_weighted`] so that tables of the
+/// same function are shared: a label chosen by the caller and up to four parameters (compared
+/// bit for bit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WeightKey {
+    /// What the function is (e.g. `"dielectric"`), unique per formula.
+    pub name: &'static str,
+    /// Its parameters as `f64::to_bits` (e.g. the index of refraction), unused ones 0.
+    pub params: [u64; 4],
+}
+
+impl WeightKey {
+    /// A key for `name` with up to four real parameters (further ones are ignored).
+    #[must_use]
+    pub fn new(name: &'static str, params: &[f64]) -> Self {
+        let mut bits = [0u64; 4];
+        for (b, p) in bits.iter_mut().zip(params) {
+            *b = p.to_bits();
+        }
+        Self { name, params: bits }
+    }
 }
 
 /// Directional albedo `E(wo)` of the single-scattering microfacet BRDF with `F = 1`,
@@ -101,6 +139,32 @@ pub struct AlbedoTable {
 /// normals whose mirror `wi` lies above the horizon ([`visible_normal_integral`]).
 #[must_use]
 pub fn directional_albedo(mf: &Microfacet<f64>, masking: MaskingKind, wo: Vec3<f64>) -> f64 {
+    directional_albedo_weighted(mf, masking, wo, &|_| 1.0)
+}
+
+/// Directional albedo of the single-scattering microfacet BRDF with the Fresnel-like factor
+/// `weight(wo·m)`, `w D G / (4 cos θi cos θo)`: [`directional_albedo`] with the integrand
+/// multiplied by `weight` (a smooth function of the angle on the microfacet for the rule to stay
+/// accurate; kinks of `weight` are not resolved).
+#[must_use]
+pub fn directional_albedo_weighted(
+    mf: &Microfacet<f64>,
+    masking: MaskingKind,
+    wo: Vec3<f64>,
+    weight: &dyn Fn(f64) -> f64,
+) -> f64 {
+    directional_albedo_weights(mf, masking, wo, [weight])[0]
+}
+
+/// [`directional_albedo_weighted`] for several weights at once, over the same quadrature
+/// nodes: about the cost of one (the geometry — normals, masking — is shared).
+#[must_use]
+pub fn directional_albedo_weights<const N: usize>(
+    mf: &Microfacet<f64>,
+    masking: MaskingKind,
+    wo: Vec3<f64>,
+    weights: [&dyn Fn(f64) -> f64; N],
+) -> [f64; N] {
     let mut conics = Vec::new();
     let vgroove = masking == MaskingKind::VGroove;
     if vgroove {
@@ -123,9 +187,11 @@ pub fn directional_albedo(mf: &Microfacet<f64>, masking: MaskingKind, wo: Vec3<f
             let wi = reflect(wo, m);
             let g1o = mf.g1(wo, m);
             if wi.z > 0.0 && g1o > 0.0 {
-                mf.g(wi, wo, m, masking) / g1o
+                let g = mf.g(wi, wo, m, masking) / g1o;
+                let cos = wo.dot(m).clamp(0.0, 1.0);
+                weights.map(|w| g * w(cos))
             } else {
-                0.0
+                [0.0; N]
             }
         },
     )
@@ -263,6 +329,50 @@ fn quadratic_roots(a: f64, b: f64, c: f64) -> Vec<f64> {
 /// Where the slope density carries no mass: a "far" bound for unbounded ranges.
 const FAR: f64 = 1e8;
 
+/// A value an integral over normals accumulates: a number, or several integrals over the same
+/// nodes at once (an array) — hardly dearer than one, since the geometry (normals, masking)
+/// is shared.
+pub trait Integrand: Copy {
+    /// The additive identity.
+    fn zero() -> Self;
+    /// Sum.
+    #[must_use]
+    fn add(self, o: Self) -> Self;
+    /// Product with a number.
+    #[must_use]
+    fn scale(self, s: f64) -> Self;
+}
+
+impl Integrand for f64 {
+    #[inline]
+    fn zero() -> Self {
+        0.0
+    }
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        self + o
+    }
+    #[inline]
+    fn scale(self, s: f64) -> Self {
+        self * s
+    }
+}
+
+impl<const N: usize> Integrand for [f64; N] {
+    #[inline]
+    fn zero() -> Self {
+        [0.0; N]
+    }
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        std::array::from_fn(|i| self[i] + o[i])
+    }
+    #[inline]
+    fn scale(self, s: f64) -> Self {
+        self.map(|v| v * s)
+    }
+}
+
 /// `∫ D_w(m) f(m) dm` over the visible normals of `w` (`D_w = G1(w, m) max(0, w·m) D(m)/cos θw`,
 /// Heitz & d'Eon 2014), restricted to `domain`, by a product Gauss-Legendre rule split along
 /// every kink of the integrand.
@@ -286,14 +396,14 @@ const FAR: f64 = 1e8;
 /// `t = σ v/(1 − v²)` so the rule sees GGX's heavy tails; Beckmann is cut at |t| = 6.5.
 /// Accuracy: ~3e-5 absolute for the albedo integrals of the tests.
 #[must_use]
-pub fn visible_normal_integral(
+pub fn visible_normal_integral<I: Integrand>(
     mf: &Microfacet<f64>,
     w: Vec3<f64>,
     domain: NormalDomain,
     conics: &[SlopeConic],
     numeric_kink: Option<&dyn Fn(Vec3<f64>) -> f64>,
-    f: impl Fn(Vec3<f64>) -> f64,
-) -> f64 {
+    f: impl Fn(Vec3<f64>) -> I,
+) -> I {
     let (xo, wo_gl) = gauss_legendre(OUTER_ORDER);
     let (xi, wi_gl) = gauss_legendre(INNER_ORDER);
     let (ax, ay) = (mf.alpha_x, mf.alpha_y);
@@ -317,13 +427,13 @@ pub fn visible_normal_integral(
         NormalDomain::MirrorAboveHorizon => {
             let e = horizon.extent();
             if e.len() < 2 {
-                return 0.0;
+                return I::zero();
             }
             (e[0], e[e.len() - 1].min(facing_cut))
         }
     };
     if !(hi > lo) {
-        return 0.0;
+        return I::zero();
     }
     let mut outer = graded(lo, hi);
     let inside = |r: f64| r > lo && r < hi;
@@ -355,30 +465,30 @@ pub fn visible_normal_integral(
         DistributionKind::Beckmann => (-tt).exp() * std::f64::consts::FRAC_1_PI,
         DistributionKind::Ggx => std::f64::consts::FRAC_1_PI / ((1.0 + tt) * (1.0 + tt)),
     };
-    let value = |t1: f64, t2: f64| -> f64 {
+    let value = |t1: f64, t2: f64| -> I {
         let facing = 1.0 - t1 * rho / cz;
         if !(facing > 0.0) {
-            return 0.0;
+            return I::zero();
         }
         let m = normal(t1, t2);
         let g1 = mf.g1(w, m);
         if !(g1 > 0.0) {
-            return 0.0;
+            return I::zero();
         }
-        density(t1 * t1 + t2 * t2) * facing * g1 * f(m)
+        f(m).scale(density(t1 * t1 + t2 * t2) * facing * g1)
     };
     // Width of the slope density along t₂ at a given t₁ (GGX's heavy tails widen it).
     let width = |t1: f64| match mf.kind {
         DistributionKind::Beckmann => 1.0,
         DistributionKind::Ggx => (1.0 + t1 * t1).sqrt(),
     };
-    let line = |t1: f64| -> f64 {
+    let line = |t1: f64| -> I {
         let (r1, r2) = match domain {
             NormalDomain::All => (-FAR, FAR),
             NormalDomain::MirrorAboveHorizon => {
                 let r = horizon.line_roots(t1);
                 if r.len() < 2 {
-                    return 0.0;
+                    return I::zero();
                 }
                 (r[0], r[r.len() - 1])
             }
@@ -439,24 +549,24 @@ pub fn visible_normal_integral(
             .map(|p| {
                 let ((mut a, sa), (mut b, sb)) = (p[0], p[1]);
                 if !(b > a) {
-                    return 0.0;
+                    return I::zero();
                 }
-                let mut sum = 0.0;
+                let mut sum = I::zero();
                 // Square-root edges: the substitution t = edge ± δu² makes them smooth.
                 let delta = (0.5 * (b - a)).min(width(t1));
                 if sa {
-                    sum += sqrt_edge(&xi, &wi_gl, a, delta, &f_line);
+                    sum = sum.add(sqrt_edge(&xi, &wi_gl, a, delta, &f_line));
                     a += delta;
                 }
                 if sb {
-                    sum += sqrt_edge(&xi, &wi_gl, b, -delta, &f_line);
+                    sum = sum.add(sqrt_edge(&xi, &wi_gl, b, -delta, &f_line));
                     b -= delta;
                 }
-                sum + piece(mf.kind, &xi, &wi_gl, a, b, width(t1), f_line)
+                sum.add(piece(mf.kind, &xi, &wi_gl, a, b, width(t1), f_line))
             })
-            .sum()
+            .fold(I::zero(), I::add)
     };
-    outer.windows(2).map(|p| piece(mf.kind, &xo, &wo_gl, p[0], p[1], 1.0, line)).sum()
+    outer.windows(2).map(|p| piece(mf.kind, &xo, &wo_gl, p[0], p[1], 1.0, line)).fold(I::zero(), I::add)
 }
 
 /// Breakpoints of `[a, b]` (in stretched-slope units) graded toward both ends: masking
@@ -483,15 +593,15 @@ fn graded(a: f64, b: f64) -> Vec<f64> {
 /// `∫ f` over `[edge, edge + delta]` (or `[edge + delta, edge]` for `delta < 0`) for an
 /// integrand with a square-root edge at `edge`: Gauss-Legendre in `u` with
 /// `t = edge + delta·u²`.
-fn sqrt_edge(x: &[f64], w: &[f64], edge: f64, delta: f64, f: &impl Fn(f64) -> f64) -> f64 {
+fn sqrt_edge<I: Integrand>(x: &[f64], w: &[f64], edge: f64, delta: f64, f: &impl Fn(f64) -> I) -> I {
     x.iter()
         .zip(w)
         .map(|(xi, wi)| {
             let u = 0.5 * (xi + 1.0);
-            0.5 * wi * f(edge + delta * u * u) * 2.0 * u
+            f(edge + delta * u * u).scale(0.5 * wi * 2.0 * u)
         })
-        .sum::<f64>()
-        * delta.abs()
+        .fold(I::zero(), I::add)
+        .scale(delta.abs())
 }
 
 /// Beckmann slopes beyond this many stretched units carry no mass (`e^{−42}`).
@@ -500,7 +610,15 @@ const BECKMANN_RANGE: f64 = 6.5;
 /// `∫_a^b f(t) dt` over one smooth piece in stretched-slope units: for Beckmann, plain
 /// Gauss-Legendre on the part within [`BECKMANN_RANGE`], split at ±2; for GGX (heavy tails)
 /// the mapped rule of [`mapped_gl`] with width `sigma`.
-fn piece(kind: DistributionKind, x: &[f64], w: &[f64], a: f64, b: f64, sigma: f64, f: impl Fn(f64) -> f64) -> f64 {
+fn piece<I: Integrand>(
+    kind: DistributionKind,
+    x: &[f64],
+    w: &[f64],
+    a: f64,
+    b: f64,
+    sigma: f64,
+    f: impl Fn(f64) -> I,
+) -> I {
     match kind {
         DistributionKind::Beckmann => {
             // The Gaussian's support, split at ±2 so each part is nearly polynomial.
@@ -512,9 +630,9 @@ fn piece(kind: DistributionKind, x: &[f64], w: &[f64], a: f64, b: f64, sigma: f6
                 .filter(|p| p[1] > p[0])
                 .map(|p| {
                     let (half, mid) = (0.5 * (p[1] - p[0]), 0.5 * (p[0] + p[1]));
-                    half * x.iter().zip(w).map(|(xi, wi)| wi * f(mid + half * xi)).sum::<f64>()
+                    x.iter().zip(w).map(|(xi, wi)| f(mid + half * xi).scale(*wi)).fold(I::zero(), I::add).scale(half)
                 })
-                .sum()
+                .fold(I::zero(), I::add)
         }
         DistributionKind::Ggx => mapped_gl(x, w, a, b, sigma, f),
     }
@@ -522,9 +640,9 @@ fn piece(kind: DistributionKind, x: &[f64], w: &[f64], a: f64, b: f64, sigma: f6
 
 /// `∫_a^b f(t) dt` by Gauss-Legendre in `v` with `t = σ v/(1 − v²)` (which spreads the
 /// nodes over long slope ranges while keeping them dense within `σ` of `t = 0`).
-fn mapped_gl(x: &[f64], w: &[f64], a: f64, b: f64, sigma: f64, f: impl Fn(f64) -> f64) -> f64 {
+fn mapped_gl<I: Integrand>(x: &[f64], w: &[f64], a: f64, b: f64, sigma: f64, f: impl Fn(f64) -> I) -> I {
     if !(b > a) {
-        return 0.0;
+        return I::zero();
     }
     let inv = |t: f64| {
         let t = t / sigma;
@@ -536,13 +654,13 @@ fn mapped_gl(x: &[f64], w: &[f64], a: f64, b: f64, sigma: f64, f: impl Fn(f64) -
     };
     let (va, vb) = (inv(a), inv(b));
     let (half, mid) = (0.5 * (vb - va), 0.5 * (va + vb));
-    let mut s = 0.0;
+    let mut s = I::zero();
     for (xi, wi) in x.iter().zip(w) {
         let v = mid + half * xi;
         let d = 1.0 - v * v;
-        s += wi * f(sigma * v / d) * (1.0 + v * v) / (d * d);
+        s = s.add(f(sigma * v / d).scale(wi * (1.0 + v * v) / (d * d)));
     }
-    s * half * sigma
+    s.scale(half * sigma)
 }
 
 impl AlbedoTable {
@@ -550,10 +668,38 @@ impl AlbedoTable {
     /// the cost; prefer [`AlbedoTable::cached`]).
     #[must_use]
     pub fn new(kind: DistributionKind, masking: MaskingKind, alpha_x: f64, alpha_y: f64) -> Self {
+        Self::weighted(kind, masking, alpha_x, alpha_y, &|_| 1.0)
+    }
+
+    /// The table of `1 − E_w` for a Fresnel-like weight `w(cos) ∈ [0, 1]` of the angle on the
+    /// microfacet (see the module docs); [`AlbedoTable::new`] is the weight 1. Costs as much
+    /// as the plain table; prefer [`AlbedoTable::cached_weighted`] for shared weights.
+    #[must_use]
+    pub fn weighted(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Self {
+        Self::weighted_set(kind, masking, alpha_x, alpha_y, &[weight]).remove(0)
+    }
+
+    /// [`AlbedoTable::weighted`] for several weights, computed together (four per quadrature
+    /// pass, each pass about the cost of one table).
+    #[must_use]
+    pub fn weighted_set(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        weights: &[&dyn Fn(f64) -> f64],
+    ) -> Vec<Self> {
         let mf = Microfacet::new(kind, alpha_x, alpha_y);
         let n_phi = if alpha_x == alpha_y { 1 } else { N_PHI_ANISO };
-        let mut loss = vec![0.0; n_phi * N_MU];
+        let mut losses = vec![vec![0.0; n_phi * N_MU]; weights.len()];
         let (mut eps, mut inv_log_span) = (Vec::new(), Vec::new());
+        let zero = |_: f64| 0.0;
         for k in 0..n_phi {
             let phi = azimuth_node(alpha_x, alpha_y, k, n_phi);
             // E varies on the scale μ ~ α(φ) near grazing (α(φ) the projected roughness of
@@ -567,48 +713,130 @@ impl AlbedoTable {
                 let mu = mu_of_s(e, s).clamp(MU_MIN, 1.0);
                 let sin = (1.0 - mu * mu).max(0.0).sqrt();
                 let wo = Vec3::new(sin * phi.cos(), sin * phi.sin(), mu);
-                let e = directional_albedo(&mf, masking, wo);
-                loss[k * N_MU + j] = (1.0 - e).clamp(0.0, 1.0);
+                for (chunk, first) in weights.chunks(4).zip((0..).step_by(4)) {
+                    let at = |i: usize| chunk.get(i).copied().unwrap_or(&zero);
+                    // The narrowest array that holds the chunk.
+                    let e: Vec<f64> = match chunk.len() {
+                        1 => directional_albedo_weights(&mf, masking, wo, [at(0)]).to_vec(),
+                        2 => directional_albedo_weights(&mf, masking, wo, [at(0), at(1)]).to_vec(),
+                        _ => directional_albedo_weights(&mf, masking, wo, [at(0), at(1), at(2), at(3)]).to_vec(),
+                    };
+                    for (i, e) in e.iter().take(chunk.len()).enumerate() {
+                        losses[first + i][k * N_MU + j] = (1.0 - e).clamp(0.0, 1.0);
+                    }
+                }
             }
         }
-        let mut slope = vec![0.0; n_phi * N_MU];
-        for k in 0..n_phi {
-            let row = &loss[k * N_MU..(k + 1) * N_MU];
-            monotone_slopes(row, 1.0 / (N_MU - 1) as f64, &mut slope[k * N_MU..(k + 1) * N_MU]);
-        }
-        let mut table = Self { kind, masking, alpha_x, alpha_y, eps, inv_log_span, n_phi, loss, slope, loss_avg: 0.0 };
-        table.loss_avg = table.integrate_loss();
-        table
+        losses
+            .into_iter()
+            .map(|loss| {
+                let mut slope = vec![0.0; n_phi * N_MU];
+                for k in 0..n_phi {
+                    let row = &loss[k * N_MU..(k + 1) * N_MU];
+                    monotone_slopes(row, 1.0 / (N_MU - 1) as f64, &mut slope[k * N_MU..(k + 1) * N_MU]);
+                }
+                let mut table = Self {
+                    kind,
+                    masking,
+                    alpha_x,
+                    alpha_y,
+                    eps: eps.clone(),
+                    inv_log_span: inv_log_span.clone(),
+                    n_phi,
+                    loss,
+                    slope,
+                    loss_avg: 0.0,
+                    weight: None,
+                };
+                table.loss_avg = table.integrate_loss();
+                table
+            })
+            .collect()
     }
 
     /// A shared table for these exact parameters, computed once per process (a small cache
     /// of the most recently used tables).
     #[must_use]
     pub fn cached(kind: DistributionKind, masking: MaskingKind, alpha_x: f64, alpha_y: f64) -> Arc<Self> {
+        Self::cached_with(kind, masking, alpha_x, alpha_y, None, &|_| 1.0)
+    }
+
+    /// A shared weighted table ([`AlbedoTable::weighted`]) for these exact parameters and the
+    /// weight named by `key`; `weight` must be the same function whenever the key is.
+    #[must_use]
+    pub fn cached_weighted(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        key: WeightKey,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Arc<Self> {
+        Self::cached_with(kind, masking, alpha_x, alpha_y, Some(key), weight)
+    }
+
+    fn cached_with(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        key: Option<WeightKey>,
+        weight: &dyn Fn(f64) -> f64,
+    ) -> Arc<Self> {
+        Self::cached_set(kind, masking, alpha_x, alpha_y, &[(key, weight)]).remove(0)
+    }
+
+    /// Shared tables for several weights at once: `(None, _)` asks for the plain table (the
+    /// weight is then ignored), `(Some(key), weight)` for [`AlbedoTable::cached_weighted`].
+    /// The missing ones are computed together ([`AlbedoTable::weighted_set`]).
+    #[must_use]
+    pub fn cached_set(
+        kind: DistributionKind,
+        masking: MaskingKind,
+        alpha_x: f64,
+        alpha_y: f64,
+        requests: &[TableRequest<'_>],
+    ) -> Vec<Arc<Self>> {
         type Cache = Mutex<Vec<Arc<AlbedoTable>>>;
         static CACHE: OnceLock<Cache> = OnceLock::new();
-        const CAPACITY: usize = 64;
+        const CAPACITY: usize = 256;
         let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
-        let same = |t: &AlbedoTable| {
+        let same = |t: &AlbedoTable, key: Option<WeightKey>| {
             t.kind == kind
                 && t.masking == masking
                 && t.alpha_x.to_bits() == alpha_x.to_bits()
                 && t.alpha_y.to_bits() == alpha_y.to_bits()
+                && t.weight == key
         };
+        let mut found: Vec<Option<Arc<Self>>> = vec![None; requests.len()];
         if let Ok(c) = cache.lock() {
-            if let Some(t) = c.iter().find(|t| same(t)) {
-                return Arc::clone(t);
+            for (slot, (key, _)) in found.iter_mut().zip(requests) {
+                *slot = c.iter().find(|t| same(t, *key)).map(Arc::clone);
             }
         }
-        // Computed outside the lock so other threads are not held up.
-        let table = Arc::new(Self::new(kind, masking, alpha_x, alpha_y));
-        if let Ok(mut c) = cache.lock() {
-            if c.len() >= CAPACITY {
-                c.remove(0);
+        let missing: Vec<usize> = (0..requests.len()).filter(|&i| found[i].is_none()).collect();
+        if !missing.is_empty() {
+            // Computed outside the lock so other threads are not held up.
+            let one = |_: f64| 1.0;
+            let weights: Vec<&dyn Fn(f64) -> f64> =
+                missing.iter().map(|&i| if requests[i].0.is_some() { requests[i].1 } else { &one }).collect();
+            let tables = Self::weighted_set(kind, masking, alpha_x, alpha_y, &weights);
+            let mut c = cache.lock().ok();
+            for (&i, mut table) in missing.iter().zip(tables) {
+                table.weight = requests[i].0;
+                let table = Arc::new(table);
+                if let Some(c) = c.as_mut() {
+                    if !c.iter().any(|t| same(t, table.weight)) {
+                        if c.len() >= CAPACITY {
+                            c.remove(0);
+                        }
+                        c.push(Arc::clone(&table));
+                    }
+                }
+                found[i] = Some(table);
             }
-            c.push(Arc::clone(&table));
         }
-        table
+        found.into_iter().map(|t| t.expect("every request is found or computed")).collect()
     }
 
     /// `1 − E_avg`: the energy the single-scattering lobe loses on average.
@@ -1172,6 +1400,37 @@ mod tests {
     }
 
     /// The lobe is symmetric in its arguments (reciprocity), in both precisions.
+    /// Weighted tables: a constant weight scales the albedo (linearity of the integral), and
+    /// for a nearly smooth surface the Fresnel-weighted albedo is the Fresnel reflectance at
+    /// the viewing angle (the mirror limit; 4 % for glass at normal incidence).
+    #[test]
+    fn weighted_tables_scale_and_reach_the_mirror_limit() {
+        let plain = AlbedoTable::new(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 0.4, 0.4);
+        let half = AlbedoTable::weighted(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 0.4, 0.4, &|_| 0.5);
+        for mu in [1.0, 0.6, 0.2, 0.03] {
+            let w = dir(mu, 0.0);
+            assert!((half.e(w) - 0.5 * plain.e(w)).abs() < 1e-12, "μ {mu}");
+        }
+        let key = WeightKey::new("test_dielectric", &[1.5]);
+        let smooth =
+            AlbedoTable::cached_weighted(DistributionKind::Ggx, MaskingKind::HeightCorrelated, 2e-3, 2e-3, key, &|c| {
+                crate::fresnel::dielectric(c, 1.5)
+            });
+        assert!((smooth.e(dir(1.0, 0.0)) - 0.04).abs() < 1e-4, "{}", smooth.e(dir(1.0, 0.0)));
+        let mu: f64 = 0.5;
+        assert!((smooth.e(dir(mu, 0.0)) - crate::fresnel::dielectric(mu, 1.5)).abs() < 1e-3);
+        // The same key returns the same shared table.
+        let again = AlbedoTable::cached_weighted(
+            DistributionKind::Ggx,
+            MaskingKind::HeightCorrelated,
+            2e-3,
+            2e-3,
+            key,
+            &|_| 0.0,
+        );
+        assert!(Arc::ptr_eq(&smooth, &again));
+    }
+
     #[test]
     fn compensation_lobe_is_reciprocal() {
         let t = AlbedoTable::new(DistributionKind::Ggx, MaskingKind::Separable, 0.2, 0.7);

@@ -63,6 +63,39 @@ pub fn schlick_rgb<T: Real>(cos_i: T, f0: Rgb<T>) -> Rgb<T> {
     f0.map(|f| schlick(cos_i, f))
 }
 
+/// The index of refraction whose normal-incidence reflectance is `f0` (the inverse of
+/// [`dielectric_f0`]), with `f0` clamped to `[0, 0.99]`.
+#[inline]
+#[must_use]
+pub fn ior_from_f0(f0: f64) -> f64 {
+    let r = f0.clamp(0.0, 0.99).sqrt();
+    (1.0 + r) / (1.0 - r)
+}
+
+/// The F82-tint conductor model (Kutz et al., "Novel aspects of the Adobe Standard Material",
+/// 2021; as in Blender's Cycles and OpenPBR): Schlick's curve minus a term `b·cos·(1 − cos)⁶`
+/// that bends it near 82°, clamped to `[0, 1]`:
+/// `F(cos) = F0 + (1 − F0)(1 − cos)⁵ − b·cos·(1 − cos)⁶`. See [`f82_tint_b`] for `b`.
+#[inline]
+#[must_use]
+pub fn f82<T: Real>(cos_i: T, f0: T, b: T) -> T {
+    let s = (T::one() - cos_i).clamp_to(T::zero(), T::one());
+    let s5 = s.sqr().sqr() * s;
+    (f0 + (T::one() - f0) * s5 - b * cos_i * s5 * s).clamp_to(T::zero(), T::one())
+}
+
+/// The `b` of [`f82`] for which the curve at `cos θ = 1/7` (≈ 82°) is Schlick's value there
+/// times `tint`: `b = S(1/7)·(1 − tint)·7/(6/7)⁶` with `S` Schlick's curve. `tint = 1` gives
+/// `b = 0` (plain Schlick).
+#[inline]
+#[must_use]
+pub fn f82_tint_b(f0: f64, tint: f64) -> f64 {
+    let f = 6.0 / 7.0;
+    let f5 = f * f * f * f * f;
+    let schlick = f0 + (1.0 - f0) * f5;
+    schlick * 7.0 / (f5 * f) * (1.0 - tint)
+}
+
 /// A complex number, just enough arithmetic for the conductor Fresnel equations.
 #[derive(Clone, Copy, Debug)]
 struct Complex<T> {
@@ -206,6 +239,27 @@ mod tests {
             let c = i as f64 / 20.0;
             assert!((conductor(c, 1.7, 0.0) - dielectric(c, 1.7)).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn ior_from_f0_inverts_the_normal_incidence_reflectance() {
+        // F0 = 0.04 is glass of index 1.5 exactly.
+        assert!((ior_from_f0(0.04) - 1.5).abs() < 1e-12);
+        assert_eq!(ior_from_f0(0.0), 1.0);
+    }
+
+    #[test]
+    fn f82_hits_f0_at_normal_incidence_and_the_tinted_schlick_value_at_82_degrees() {
+        for (f0, tint) in [(0.9, 0.5), (0.2, 0.0), (0.6, 1.0), (0.95, 0.8)] {
+            let b = f82_tint_b(f0, tint);
+            assert!((f82(1.0f64, f0, b) - f0).abs() < 1e-15);
+            // At cos = 1/7: Schlick's F0 + (1 − F0)(6/7)⁵, times the tint.
+            let schlick = f0 + (1.0 - f0) * (6.0f64 / 7.0).powi(5);
+            assert!((f82(1.0f64 / 7.0, f0, b) - schlick * tint).abs() < 1e-12, "{f0} {tint}");
+            // Grazing: 1 whatever the tint (the correction vanishes with cos).
+            assert!((f82(0.0f64, f0, b) - 1.0).abs() < 1e-15);
+        }
+        assert_eq!(f82_tint_b(0.5, 1.0), 0.0);
     }
 
     #[test]

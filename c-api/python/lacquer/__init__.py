@@ -49,6 +49,7 @@ __all__ = [
     "models",
     "presets",
     "check_model",
+    "fit_node_group",
     "render",
     "CancelledError",
     "abi_version",
@@ -431,6 +432,37 @@ def check_model(name: str, level: Union[str, int] = "quick") -> CheckResult:
     passed = c_bool(False)
     _check(_native.lib.lq_check_model(name.encode("utf-8"), _level(level), byref(out), byref(passed)))
     return CheckResult(bool(passed.value), _json.loads(_native.take_string(out)))
+
+
+def fit_node_group(material_or_preset: Union[str, bytes, dict, Material]) -> dict:
+    """Fits the Blender node group ``Lacquer Coated Paint`` (its mean lobe, built from
+    Principled BSDFs) to a coated_paint material.
+
+    ``material_or_preset`` is a preset name, a material dict, material JSON text or a
+    :class:`Material`. Returns ``{"inputs": {socket name: value}, "error": {"albedo_rms",
+    "albedo_max", "brdf_rel_rms", "brdf_cos_rms", "snr_db", "seconds"}, "fit": {...}}``
+    (colours as ``[r, g, b]`` lists). Raises :class:`InvalidMaterialError` for a material
+    that is not a coated_paint, :class:`UnknownNameError` for an unknown preset.
+    """
+    spec = material_or_preset
+    if isinstance(spec, Material):
+        spec = spec.to_json()
+    if isinstance(spec, dict):
+        text = _json.dumps(spec)
+    elif isinstance(spec, (str, bytes)):
+        text = spec.decode("utf-8") if isinstance(spec, bytes) else spec
+        if not text.lstrip().startswith("{"):
+            text = _json.dumps({"preset": text})
+    else:
+        raise TypeError(
+            "fit_node_group() takes a preset name, a material dict, JSON text or a Material, "
+            f"not {type(spec).__name__}"
+        )
+    if "\0" in text:
+        raise InvalidJSONError(_native.LQ_ERR_INVALID_JSON, "text contains a NUL character")
+    out = c_void_p()
+    _check(_native.lib.lq_fit_node_group(text.encode("utf-8"), byref(out)))
+    return _json.loads(_native.take_string(out))
 
 
 def render(job, progress=None) -> dict:

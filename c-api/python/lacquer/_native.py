@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 2
+ABI_MINOR = 3
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -91,6 +91,7 @@ _SIGNATURES = {
     "lq_presets_json": (c_int32, [_STR_OUT]),
     "lq_check_material": (c_int32, [c_void_p, c_int32, _STR_OUT, POINTER(c_bool)]),
     "lq_check_model": (c_int32, [c_char_p, c_int32, _STR_OUT, POINTER(c_bool)]),
+    "lq_fit_node_group": (c_int32, [c_char_p, _STR_OUT]),
     "lq_render": (c_int32, [c_char_p, PROGRESS_FN, c_void_p, POINTER(c_void_p)]),
     "lq_image_width": (c_uint32, [c_void_p]),
     "lq_image_height": (c_uint32, [c_void_p]),

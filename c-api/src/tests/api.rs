@@ -355,6 +355,27 @@ fn checks_through_the_abi() {
     assert!(passed);
 }
 
+/// `lq_fit_node_group` returns the contract's JSON: every socket, every error figure, and
+/// the same answer as the core.
+#[test]
+fn fit_node_group_through_the_abi() {
+    let mut out = std::ptr::null_mut();
+    assert_eq!(unsafe { lq_fit_node_group(c"{\"preset\": \"solid_red\"}".as_ptr(), &mut out) }, LQ_OK);
+    let text = unsafe { CStr::from_ptr(out) }.to_str().unwrap().to_string();
+    unsafe { lq_string_free(out) };
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let inputs = v["inputs"].as_object().unwrap();
+    assert_eq!(inputs.len(), 16);
+    for key in ["Pigment Color", "Flake Coverage", "Coat IOR", "Coat Tint", "Sparkle", "Pearl Film Thickness"] {
+        assert!(inputs.contains_key(key), "{key}");
+    }
+    for key in ["albedo_rms", "albedo_max", "brdf_rel_rms", "brdf_cos_rms", "snr_db", "seconds"] {
+        assert!(v["error"][key].as_f64().is_some_and(f64::is_finite), "{key}: {text}");
+    }
+    let core = lacquer_core::fit::node_group::fit_node_group_json("solid_red").unwrap();
+    assert_eq!(v["inputs"], serde_json::to_value(&core.inputs).unwrap());
+}
+
 #[test]
 fn one_element_functions_match_the_batch_functions() {
     let n = 600;

@@ -608,6 +608,38 @@ fn cases() -> Vec<Case> {
             Outcome { status, message: last_error(), outputs: "nothing written" }
         },
     ));
+    // A sentinel string pointer: `*out_json` must still hold it after a failed fit.
+    fn fit_case(json: Option<&'static CStr>) -> Outcome {
+        let sentinel = 0x10 as *mut std::ffi::c_char;
+        let mut out = sentinel;
+        let status = unsafe { lq_fit_node_group(json.map_or(null(), CStr::as_ptr), &mut out) };
+        assert_eq!(out, sentinel, "*out_json written on error");
+        Outcome { status, message: last_error(), outputs: "*out_json untouched" }
+    }
+    v.push(batch_case("lq_fit_node_group", "`material_json` = NULL", LQ_ERR_NULL, "`material_json` is NULL", || {
+        fit_case(None)
+    }));
+    v.push(batch_case("lq_fit_node_group", "`out_json` = NULL", LQ_ERR_NULL, "`out_json` is NULL", || {
+        let status = unsafe { lq_fit_node_group(c"solid_red".as_ptr(), null_mut()) };
+        Outcome { status, message: last_error(), outputs: "nothing allocated, no fit run" }
+    }));
+    v.push(batch_case(
+        "lq_fit_node_group",
+        "`{\"model\": \"lambert\"}` (not a coated_paint)",
+        LQ_ERR_INVALID_MATERIAL,
+        "approximates a coated_paint material",
+        || fit_case(Some(c"{\"model\": \"lambert\"}")),
+    ));
+    v.push(batch_case(
+        "lq_fit_node_group",
+        "unknown preset \"nope\"",
+        LQ_ERR_UNKNOWN_NAME,
+        "unknown preset \"nope\"",
+        || fit_case(Some(c"nope")),
+    ));
+    v.push(batch_case("lq_fit_node_group", "`{not json`", LQ_ERR_INVALID_JSON, "invalid JSON", || {
+        fit_case(Some(c"{not json"))
+    }));
     v.push(batch_case("lq_material_free / lq_string_free", "NULL", LQ_OK, "", || {
         unsafe {
             lq_material_free(null_mut());

@@ -22,6 +22,7 @@
 
 pub mod lm;
 pub mod metrics;
+pub mod node_group;
 
 pub use metrics::{FitData, Metrics, Sample};
 
