@@ -353,6 +353,61 @@ def scene_principled(size, spp):
     return scene, {}
 
 
+class _Layout:
+    """Records what a panel draws (a stand-in for bpy's UILayout, which needs a window)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = False
+
+    def _sub(self, *a, **k):
+        return _Layout(self.log)
+
+    row = column = box = _sub
+
+    def prop(self, data, name, **k):
+        getattr(data, name)  # raises if the property does not exist
+        self.log.append(("prop", name))
+
+    def label(self, text="", **k):
+        self.log.append(("label", text))
+
+    def menu(self, menu, **k):
+        assert hasattr(bpy.types, menu), menu
+        self.log.append(("menu", menu))
+
+    def operator(self, op, **k):
+        self.log.append(("operator", op))
+
+        class _Props:
+            pass
+
+        return _Props()
+
+    def separator(self, **k):
+        pass
+
+
+def ui_smoke(mat) -> dict:
+    """Draws the extension's panels and menu into a recording layout: every property, menu and
+    operator they name exists."""
+    import importlib
+
+    ui = importlib.import_module(ADDON + ".ui")
+    ops = importlib.import_module(ADDON + ".operators")
+
+    class Ctx:
+        material = mat
+        object = bpy.context.object
+        scene = bpy.context.scene
+        engine = "LACQUER"
+
+    log: list = []
+    for cls in (ui.MATERIAL_PT_lacquer, ui.RENDER_PT_lacquer, ops.LACQUER_MT_presets):
+        cls.draw(type("P", (), {"layout": _Layout(log)})(), Ctx)
+    return {"ui_items": len(log), "ui_props": sorted({n for k, n in log if k == "prop"})}
+
+
 def material_info(mat) -> dict:
     s = mat.lacquer
     return {"preset": s.preset, "fit_source": s.fit_message,
@@ -444,6 +499,8 @@ def main(argv):
             setup = time.perf_counter() - t
             for k, m in mats.items():
                 report["materials"][k] = material_info(m)
+                if "ui" not in report:
+                    report["ui"] = ui_smoke(m)
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
             this = [(e, e.lower()) for e in engines]
@@ -458,7 +515,15 @@ def main(argv):
                         fitted = json.loads(m.lacquer.fit_inputs).get("Sparkle", 1.0)
                         node.inputs["Sparkle"].default_value = 0.0 if tag.endswith("_mean") else fitted
                 path = os.path.join(os.path.abspath(a.out), f"{name}_{tag}.exr")
-                r = render(scene, engine, path)
+                if engine == EEVEE:  # needs an OpenGL context (software GL headless): optional
+                    try:
+                        r = render(scene, engine, path)
+                    except RuntimeError as e:
+                        report["eevee_error"] = str(e)
+                        print(f"EEVEE could not render: {e}", flush=True)
+                        continue
+                else:
+                    r = render(scene, engine, path)
                 r.update(scene=name, tag=tag, setup_seconds=setup)
                 report["renders"].append(r)
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
