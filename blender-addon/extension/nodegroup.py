@@ -1,7 +1,7 @@
 """The `Lacquer Coated Paint` node group (Cycles and EEVEE nodes only) and the materials using it.
 
-Structure (version ``NODE_GROUP_VERSION``; docs/blender.md states it as formulas, which is what
-the core's fit models):
+Structure (version ``NODE_GROUP_VERSION``; the core's fit, docs/blender-fit.md, models exactly
+this in the mean-lobe limit):
 
 * Three Principled BSDFs share the clearcoat (Coat Weight, Coat Roughness, Coat IOR, Coat Tint,
   Coat Normal = the surface's shading normal N):
@@ -19,12 +19,14 @@ the core's fit models):
 * **Sparkle = 1** (per-cell flakes): the surface is cut into Voronoi cells (3D, F1, randomness 1)
   of object coordinates × the object's scale, i.e. metres on the object. The cell scale is
   ``0.937 / Flake Size`` (per metre): a plane through such a Voronoi diagram has cells of mean
-  area ``0.69 / scale²`` = one flake's area ``π (Flake Size)² / 4``. Each cell's three random
-  values (the Voronoi Color) decide whether it holds a flake (``r < Flake Coverage``: the flake
-  weight is 1 or 0; pearls: ``r < c_p / (1 − c_f)``) and sample its normal from GGX(α = Flake Spread) around N
-  (``tan²θ = α² g / (1 − g)``, ``φ = 2π b``); the flake's own roughness is Flake Roughness.
-  Pearl flakes use an independent Voronoi (shifted coordinates, Pearl Size, Pearl Coverage,
-  Pearl Spread).
+  area ``0.69 / scale²`` = one flake's area ``π (Flake Size)² / 4`` (measured by Monte Carlo on
+  Blender's jittered-grid Voronoi). Each cell's three random values (the Voronoi Color r, g, b)
+  sample its flake normal m from GGX(α = Flake Spread) around N (``tan²θ = α² g / (1 − g)``,
+  ``φ = 2π b``) and decide whether it holds a flake: ``r < c_f · G1(I) (I·m) / ((I·N)(N·m))``,
+  the visible-normal weighting of a tilted flake (I toward the viewer, G1 Smith GGX masking),
+  so that the flake weight, 1 or 0 per cell, averages to the mean flake lobe's. The flake's own
+  roughness is Flake Roughness. Pearl flakes use an independent Voronoi (shifted coordinates,
+  Pearl Size, probability from ``c_p / (1 − c_f)``, Pearl Spread).
 
 * **Sparkle = 0** (the mean lobe): every point gets ``f_flake = Flake Coverage`` with Normal = N
   and Principled roughness ``(Flake Spread² + Flake Roughness⁴)^¼`` (GGX α of the flake-normal
