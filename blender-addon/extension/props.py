@@ -19,19 +19,44 @@ _classes: list = []
 _loading = False  # set while load_material_json writes many fields: no refit per field
 
 
+_pending: set = set()  # materials waiting for a refit (names)
+
+
+def _refit(name: str):
+    from . import nodegroup
+
+    mat = bpy.data.materials.get(name)
+    if mat is None or not mat.lacquer.enabled:
+        return
+    try:
+        nodegroup.update_material(mat)
+    except Exception as e:  # a fit failure must not break the property edit
+        mat.lacquer.fit_message = f"not updated: {e}"
+
+
+def _refit_pending():
+    while _pending:
+        _refit(_pending.pop())
+    return None  # one-shot timer
+
+
 def _on_param_change(self, context):
-    """A paint parameter changed: the preset no longer describes it; refit if asked to."""
+    """A paint parameter changed: the preset no longer describes it; refit if asked to. In the
+    UI the refit waits until the value has stopped changing for 0.25 s (dragging a slider does
+    not fit at every step); in background mode (scripts, farms) it happens at once."""
     if _loading:
         return
     self.modified = True
     mat = self.id_data
-    if self.auto_update and isinstance(mat, bpy.types.Material):
-        from . import nodegroup
-
-        try:
-            nodegroup.update_material(mat)
-        except Exception as e:  # a fit failure must not break the property edit
-            self.fit_message = f"not updated: {e}"
+    if not (self.auto_update and isinstance(mat, bpy.types.Material)):
+        return
+    if bpy.app.background:
+        _refit(mat.name)
+        return
+    _pending.add(mat.name)
+    if bpy.app.timers.is_registered(_refit_pending):
+        bpy.app.timers.unregister(_refit_pending)
+    bpy.app.timers.register(_refit_pending, first_interval=0.25)
 
 
 def _prop_for(p: dict):
@@ -144,6 +169,9 @@ def register():
 
 
 def unregister():
+    if bpy.app.timers.is_registered(_refit_pending):
+        bpy.app.timers.unregister(_refit_pending)
+    _pending.clear()
     for attr, owner in (("lacquer", bpy.types.Material), ("lacquer", bpy.types.Scene)):
         if hasattr(owner, attr):
             delattr(owner, attr)

@@ -408,6 +408,21 @@ def ui_smoke(mat) -> dict:
     return {"ui_items": len(log), "ui_props": sorted({n for k, n in log if k == "prop"})}
 
 
+def auto_update_smoke(mat) -> dict:
+    """Editing a paint parameter refits the node group (background mode: at once); re-applying
+    the preset restores it."""
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    before = node.inputs["Flake Coverage"].default_value
+    preset = mat.lacquer.preset
+    mat.lacquer.flake_density = 2.0
+    after = node.inputs["Flake Coverage"].default_value
+    modified = mat.lacquer.modified
+    bpy.ops.lacquer.apply_preset(preset=preset, material=mat.name)
+    return {"coverage_before": before, "coverage_after_edit": after, "modified": modified,
+            "coverage_restored": node.inputs["Flake Coverage"].default_value,
+            "modified_after_reapply": mat.lacquer.modified}
+
+
 def material_info(mat) -> dict:
     s = mat.lacquer
     return {"preset": s.preset, "fit_source": s.fit_message,
@@ -501,6 +516,7 @@ def main(argv):
                 report["materials"][k] = material_info(m)
                 if "ui" not in report:
                     report["ui"] = ui_smoke(m)
+                    report["auto_update"] = auto_update_smoke(m)
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
             this = [(e, e.lower()) for e in engines]

@@ -163,6 +163,15 @@ def test_panels_draw_every_parameter(renders):
     assert ui["ui_items"] > 40
 
 
+def test_editing_a_parameter_refits_the_node_group(renders):
+    """gold_flake_8 edited to 2 % flakes: the fitted Flake Coverage drops, the preset is marked
+    modified; applying the preset again restores both."""
+    a = renders["report"]["auto_update"]
+    assert a["coverage_after_edit"] < 0.5 * a["coverage_before"], a
+    assert a["modified"] is True and a["modified_after_reapply"] is False, a
+    assert abs(a["coverage_restored"] - a["coverage_before"]) < 1e-6, a
+
+
 def test_eevee_renders_the_node_group(renders):
     """EEVEE (software GL when headless) renders the same node group close to Cycles."""
     d = renders["dir"]
