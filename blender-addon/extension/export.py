@@ -431,8 +431,11 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             continue
         axis_scale = tuple(round(float(x), 6) for x in matrix.to_scale())
         key = (ob.name, ob.data.name if ob.data else "", ob.type, axis_scale)
-        if inst.is_instance and ob.type == "MESH":
-            key = ("data", ob.data.as_pointer(), axis_scale)
+        if ob.type == "MESH" and ob.data is not None:
+            # Instances and linked duplicates share the evaluated mesh: export it once per
+            # (mesh, materials, scale) and instance it by matrix.
+            slots = tuple(s.material.name if s.material else "" for s in ob.material_slots)
+            key = ("data", ob.data.as_pointer(), slots, axis_scale)
         entry = mesh_cache.get(key)
         if entry is None:
             mesh = None
