@@ -30,12 +30,15 @@ SCENES = HERE.parent / "scripts" / "scenes.py"
 SIZE = int(os.environ.get("LACQUER_BLENDER_SIZE", "128"))
 SPP = int(os.environ.get("LACQUER_BLENDER_SPP", "32"))
 
-#: Cycles (node group, fitted by the core) against LACQUER (the exact model), mean colour per
-#: region of the sphere: the largest relative difference of a region's luminance, and of any
-#: channel, allowed. "mean": the node group with Sparkle 0, the mean lobe the core fits (its
-#: error is the fit's); "sparkle": Sparkle 1, the per-cell flakes artists render with (adds the
-#: procedural flakes' own deviation from the mean lobe). Measured figures: blender-addon/README.md.
-REGION_TOL = {"mean": (0.12, 0.30), "sparkle": (0.20, 0.45)}
+#: Cycles (node group, fitted by the core) against LACQUER (the exact model), gold_flake_8 on a
+#: sphere. "mean": the node group with Sparkle 0, the mean lobe the core fits — per region of a 3×3
+#: grid, the largest relative difference of the mean luminance and of any channel (stable: both
+#: images are smooth). "sparkle": Sparkle 1, the per-cell flakes artists render with — their narrow
+#: lobes reflecting a small light make Cycles' region means heavy-tailed at test sample counts
+#: (a region's ratio moves by ±20 % between 32, 64 and 256 spp), so it is checked on the whole
+#: sphere's mean (which moves by 3 %). Measured figures: blender-addon/README.md.
+REGION_TOL = (0.12, 0.30)
+SPHERE_TOL = (0.12, 0.25)
 #: Light and world conversions with an exact material on both sides (Diffuse BSDF = Lambert).
 LIGHTS_TOL = 0.01
 
@@ -119,9 +122,7 @@ def _region_means(img, mask, grid=3, min_pixels=40):
     return out
 
 
-@pytest.mark.parametrize("variant", ["mean", "sparkle"])
-def test_cycles_and_lacquer_agree_per_region(renders, variant):
-    """gold_flake_8 on a sphere: the node group in Cycles against the exact model in LACQUER."""
+def _compare(renders, variant):
     d = renders["dir"]
     cyc = read_exr(d / ("compare_cycles_mean.exr" if variant == "mean" else "compare_cycles.exr"))
     lq = read_exr(d / "compare_lacquer.exr")
@@ -139,17 +140,37 @@ def test_cycles_and_lacquer_agree_per_region(renders, variant):
         rows.append({"region": list(k), "cycles": [round(float(x), 4) for x in c],
                      "lacquer": [round(float(x), 4) for x in l_],
                      "rel_luminance": round(dl, 4), "rel_channel_max": round(dc, 4)})
+    c, l_ = cyc[mask][:, :3].astype(np.float64).mean(axis=0), lq[mask][:, :3].astype(np.float64).mean(axis=0)
+    sphere = {"cycles": [round(float(x), 4) for x in c], "lacquer": [round(float(x), 4) for x in l_],
+              "rel_luminance": round(float(abs(luminance(c) - luminance(l_)) / luminance(l_)), 4),
+              "rel_channel_max": round(float(np.max(np.abs(c - l_) / l_)), 4)}
     FIGURES[f"compare_{variant}"] = {"regions": rows, "worst_rel_luminance": round(worst_lum, 4),
-                                     "worst_rel_channel": round(worst_ch, 4),
+                                     "worst_rel_channel": round(worst_ch, 4), "sphere": sphere,
                                      "fit": renders["report"]["materials"].get("gold_flake_8")}
     print(f"\nCycles ({variant}) vs LACQUER, gold_flake_8, per region (row, col): "
           "rel. luminance / worst channel")
     for r in rows:
         print(f"  {r['region']}: C {r['cycles']} L {r['lacquer']}  {r['rel_luminance']:.3f} / "
               f"{r['rel_channel_max']:.3f}")
-    tol_lum, tol_ch = REGION_TOL[variant]
-    assert worst_lum <= tol_lum, FIGURES[f"compare_{variant}"]
-    assert worst_ch <= tol_ch, FIGURES[f"compare_{variant}"]
+    print(f"  whole sphere: C {sphere['cycles']} L {sphere['lacquer']}  {sphere['rel_luminance']:.3f} / "
+          f"{sphere['rel_channel_max']:.3f}")
+    return FIGURES[f"compare_{variant}"]
+
+
+def test_cycles_mean_lobe_and_lacquer_agree_per_region(renders):
+    """gold_flake_8 on a sphere: the fitted node group's mean lobe (Sparkle 0) in Cycles against
+    the exact model in LACQUER, region by region."""
+    f = _compare(renders, "mean")
+    assert f["worst_rel_luminance"] <= REGION_TOL[0], f
+    assert f["worst_rel_channel"] <= REGION_TOL[1], f
+
+
+def test_cycles_sparkle_and_lacquer_agree_on_the_sphere(renders):
+    """gold_flake_8 on a sphere with per-cell flakes (Sparkle 1, as artists render it): the whole
+    sphere's mean colour in Cycles against LACQUER."""
+    f = _compare(renders, "sparkle")
+    assert f["sphere"]["rel_luminance"] <= SPHERE_TOL[0], f
+    assert f["sphere"]["rel_channel_max"] <= SPHERE_TOL[1], f
 
 
 def test_panels_draw_every_parameter(renders):
