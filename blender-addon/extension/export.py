@@ -255,23 +255,19 @@ def light_desc(light, matrix, report: Report) -> list:
     if light.type == "AREA":
         sx = float(light.size)
         sy = float(light.size_y) if light.shape in {"RECTANGLE", "ELLIPSE"} else sx
-        if light.shape in {"DISK", "ELLIPSE"}:
-            report.warn(f"light \"{light.name}\": {light.shape.lower()} area light rendered as a rectangle of the "
-                        f"same area")
-            k = math.sqrt(math.pi) / 2.0
-            sx, sy = sx * k, sy * k
+        ellipse = light.shape in {"DISK", "ELLIPSE"}  # the ellipse inscribed in sx × sy
         if float(getattr(light, "spread", math.pi)) < math.pi - 1e-4:
             report.warn(f"light \"{light.name}\": area light spread ignored (180°)")
         m3 = matrix.to_3x3()
         ex, ey = m3 @ Vector((1.0, 0.0, 0.0)), m3 @ Vector((0.0, 1.0, 0.0))
-        area = (ex * sx).cross(ey * sy).length
+        area = (ex * sx).cross(ey * sy).length * (math.pi / 4.0 if ellipse else 1.0)
         if area <= 0:
             return []
         radiance = [power / (math.pi * area) * c for c in color]
         corner = pos - ex * (sx / 2) - ey * (sy / 2)
         # Front side = edge_u × edge_v must face the light's −Z: edge_u = y, edge_v = x.
         return [{"type": "rectangle", "corner": _point(corner), "edge_u": _dir(ey * sy), "edge_v": _dir(ex * sx),
-                 "radiance": radiance, "surface": False}]
+                 "radiance": radiance, "ellipse": ellipse, "surface": False}]
     report.warn(f"light \"{light.name}\": type {light.type} not supported (left out)")
     return []
 

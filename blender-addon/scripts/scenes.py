@@ -251,7 +251,8 @@ def env_image(path):
     return bpy.data.images.load(path)
 
 
-LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "world_color", "world_hdri")
+LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "area_disk", "area_ellipse", "world_color",
+               "world_hdri")
 
 
 def scene_lights(size, spp, case, out):
@@ -276,6 +277,11 @@ def scene_lights(size, spp, case, out):
     elif case == "area":
         add_light(scene, "AREA", (1.3, 0.5, 0.8), (0.0, 0.0, 0.0), energy=60.0, shape="RECTANGLE", size=0.6,
                   size_y=0.3)
+    elif case == "area_disk":
+        add_light(scene, "AREA", (1.3, 0.5, 0.8), (0.0, 0.0, 0.0), energy=60.0, shape="DISK", size=0.5)
+    elif case == "area_ellipse":
+        add_light(scene, "AREA", (-1.2, -0.6, 0.7), (0.0, 0.0, 0.0), energy=60.0, shape="ELLIPSE", size=0.7,
+                  size_y=0.25)
     elif case == "world_color":
         set_world(scene, (0.3, 0.5, 0.7), 1.5)
     elif case == "world_hdri":

@@ -233,7 +233,8 @@ def test_more_flakes_more_sparkle(renders):
                                           for k, x in f.items()))
 
 
-LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "world_color", "world_hdri")
+LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "area_disk", "area_ellipse", "world_color",
+               "world_hdri")
 
 
 @pytest.mark.parametrize("case", LIGHT_CASES)

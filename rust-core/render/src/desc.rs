@@ -37,7 +37,8 @@
 //! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
 //! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
 //! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
-//! `rectangle` (corner, edge_u, edge_v, radiance, two_sided), `environment` (`map`:
+//! `rectangle` (corner, edge_u, edge_v, radiance, two_sided; `"ellipse": true` keeps only the
+//! ellipse inscribed in it: disk and ellipse lights), `environment` (`map`:
 //! `"studio"`, an `.hdr`/`.exr` lat-long path, or absent for a constant `radiance`; `scale`,
 //! `rotation_deg`). Sphere and rectangle lights are surfaces (the camera sees them, they cast
 //! shadows) unless `"surface": false`, which makes them behave as lights do in Blender's
@@ -369,6 +370,9 @@ pub enum LightDesc {
         /// Emit from both sides.
         #[serde(default)]
         two_sided: bool,
+        /// Only the ellipse inscribed in the parallelogram emits (disk and ellipse lights).
+        #[serde(default)]
+        ellipse: bool,
         /// The emitter is a surface (seen by the camera, casting shadows); false: as Cycles'
         /// lights, camera and shadow rays pass through it.
         #[serde(default = "yes")]
@@ -706,10 +710,11 @@ impl SceneDesc {
                     sphere: Sphere { center: v3a(*center), radius: *radius as f32, uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                 },
-                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided, .. } => Light::Rect {
+                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided, ellipse, .. } => Light::Rect {
                     quad: Quad { corner: v3a(*corner), edge_u: v3a(*edge_u), edge_v: v3a(*edge_v), uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                     two_sided: *two_sided,
+                    ellipse: *ellipse,
                 },
                 LightDesc::Environment { map, radiance, scale, rotation_deg } => {
                     let env = match map.as_deref() {
@@ -936,6 +941,39 @@ mod tests {
         assert!(c == 0.0 && a == 1.0, "a surface light hides the floor: {c} {a}");
         let (c, a) = centre(&render_job(&job(false), &mut |_| true).unwrap());
         assert!(a == 1.0 && (c - expected).abs() < 0.02 * expected, "{c} vs {expected}");
+    }
+
+    /// A disk light (the ellipse inscribed in a 1×1 square, radiance 5, height 1, not a surface)
+    /// above a Lambert floor (albedo 0.5), seen from above through it: on the axis the floor's
+    /// radiance is `ρ L R²/(R² + h²)` = 0.5 (the full square would give 0.599), and the camera
+    /// sees the floor through the disk.
+    #[test]
+    fn disk_lights() {
+        let job = r#"{"material": {"model": "lambert", "albedo": 0.5}, "width": 9, "height": 9, "spp": 512,
+            "max_depth": 1, "aovs": false,
+            "scene": {"camera": {"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov_deg": 2},
+              "objects": [{"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [20, 20],
+                           "material": "paint"}],
+              "lights": [{"type": "rectangle", "corner": [-0.5, 1, -0.5], "edge_u": [1, 0, 0],
+                          "edge_v": [0, 0, 1], "radiance": 5, "ellipse": true, "surface": false}]}}"#;
+        let fb = render_job(job, &mut |_| true).unwrap();
+        let mut sum = 0.0;
+        for y in 3..6 {
+            for x in 3..6 {
+                sum += fb.color[y * 9 + x][0] as f64;
+            }
+        }
+        let c = sum / 9.0;
+        assert!((c - 0.5).abs() < 0.01, "{c} vs 0.5");
+        // As a surface, the disk hides the floor only inside the ellipse: a ray through the
+        // square's corner region reaches the floor.
+        let mut mesh_scene = job.replace("\"surface\": false", "\"surface\": true");
+        mesh_scene = mesh_scene.replace("\"fov_deg\": 2", "\"fov_deg\": 22");
+        let fb = render_job(&mesh_scene, &mut |_| true).unwrap();
+        // 9 px span 2·3·tan(11°) = 1.17 units at the floor (0.78 at the light): the centre pixel
+        // looks at the disk's back (black), the corner pixel past the disk's rim.
+        assert_eq!(fb.color[4 * 9 + 4][0], 0.0);
+        assert!(fb.color[0][0] > 0.05, "corner {}", fb.color[0][0]);
     }
 
     /// Two instances of one named mesh (a unit quad in z = 0), placed by matrices left and right of

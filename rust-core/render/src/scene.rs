@@ -17,6 +17,8 @@ struct ShapeRef {
     light: Option<u32>,
     /// An emitter that is not a surface: rays pass through it (see [`SceneBuilder::light_no_surface`]).
     pass_through: bool,
+    /// A rectangle of which only the inscribed ellipse exists (disk and ellipse lights).
+    ellipse: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -69,19 +71,19 @@ impl SceneBuilder {
 
     /// Adds a triangle mesh made of material `m`.
     pub fn mesh(&mut self, mesh: Mesh, m: u32) -> &mut Self {
-        self.meshes.push((mesh, ShapeRef { material: Some(m), light: None, pass_through: false }));
+        self.meshes.push((mesh, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
     /// Adds a sphere made of material `m`.
     pub fn sphere(&mut self, s: Sphere, m: u32) -> &mut Self {
-        self.spheres.push((s, ShapeRef { material: Some(m), light: None, pass_through: false }));
+        self.spheres.push((s, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
     /// Adds a rectangle made of material `m`.
     pub fn quad(&mut self, q: Quad, m: u32) -> &mut Self {
-        self.quads.push((q, ShapeRef { material: Some(m), light: None, pass_through: false }));
+        self.quads.push((q, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
@@ -99,10 +101,10 @@ impl SceneBuilder {
 
     fn add_light(&mut self, l: Light, pass_through: bool) -> &mut Self {
         let idx = self.lights.len() as u32;
-        let r = ShapeRef { material: None, light: Some(idx), pass_through };
+        let r = ShapeRef { material: None, light: Some(idx), pass_through, ellipse: false };
         match &l {
             Light::Sphere { sphere, .. } => self.spheres.push((*sphere, r)),
-            Light::Rect { quad, .. } => self.quads.push((*quad, r)),
+            Light::Rect { quad, ellipse, .. } => self.quads.push((*quad, ShapeRef { ellipse: *ellipse, ..r })),
             _ => {}
         }
         self.lights.push(l);
@@ -246,7 +248,10 @@ impl Scene {
         match self.prims[p as usize] {
             Prim::Triangle { mesh, tri } => self.meshes[mesh as usize].intersect(tri as usize, ray, tmax),
             Prim::Sphere(s) => self.spheres[s as usize].intersect(ray, tmax).map(|t| (t, 0.0, 0.0)),
-            Prim::Quad(q) => self.quads[q as usize].intersect(ray, tmax),
+            Prim::Quad(q) => {
+                let h = self.quads[q as usize].intersect(ray, tmax)?;
+                (!self.quad_refs[q as usize].ellipse || crate::lights::in_ellipse(h.1, h.2)).then_some(h)
+            }
         }
     }
 
