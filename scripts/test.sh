@@ -31,7 +31,7 @@ venv="$(bash scripts/python-env.sh)"
 "$venv/bin/python" -m pytest -q tests/test_render_exr.py tests/test_fit_mitsuba.py
 
 export LACQUER_VENV="$venv"  # the Mitsuba plugin's tests share the pinned test venv
-for extra in c-api/test.sh mitsuba-plugin/test.sh; do
+for extra in c-api/test.sh mitsuba-plugin/test.sh blender-addon/test.sh; do
   if [ -f "$extra" ]; then
     step "$extra"
     bash "$extra"

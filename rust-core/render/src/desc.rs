@@ -20,18 +20,30 @@
 //! ```
 //!
 //! Objects: `sphere` (center, radius), `plane` (center, normal, size `[w, h]`, optional
-//! tangent), `rectangle` (corner, edge_u, edge_v), `mesh` (an OBJ `file`, or inline
-//! `positions` + `triangles` with optional `normals` and `uvs`; with an optional
-//! `transform` `{scale, rotate_deg: [x, y, z], translate}` or `fit_radius`, which centres the
-//! mesh above y = 0 and scales its bounding sphere to that radius). A `material` is the name
-//! of an entry in `materials`, a preset name, or inline material JSON.
+//! tangent), `rectangle` (corner, edge_u, edge_v), `mesh` (an OBJ `file`, inline
+//! `positions` + `triangles` with optional `normals` and `uvs`, or `"mesh": NAME`, an entry of
+//! the top-level `meshes` that any number of objects may instance; with an optional
+//! `transform` `{scale, rotate_deg: [x, y, z], translate, matrix}` or `fit_radius`, which
+//! centres the mesh above y = 0 and scales its bounding sphere to that radius). `matrix` is a
+//! row-major 4×4 affine matrix applied after the other three (normals by its inverse
+//! transpose). A `material` is the name of an entry in `materials`, a preset name, or inline
+//! material JSON.
+//!
+//! Inline mesh arrays (`positions`, `triangles`, `normals`, `uvs`, in objects or in `meshes`)
+//! are JSON arrays of `[x, y, z]` / `[i, j, k]` / `[u, v]`, or a string `"base64:..."` of
+//! little-endian `f32` (`u32` for triangles) values: the compact form hosts such as Blender
+//! write for large meshes.
 //!
 //! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
 //! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
 //! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
-//! `rectangle` (corner, edge_u, edge_v, radiance, two_sided), `environment` (`map`:
+//! `rectangle` (corner, edge_u, edge_v, radiance, two_sided; `"ellipse": true` keeps only the
+//! ellipse inscribed in it: disk and ellipse lights), `environment` (`map`:
 //! `"studio"`, an `.hdr`/`.exr` lat-long path, or absent for a constant `radiance`; `scale`,
-//! `rotation_deg`). Colours are a number or `[r, g, b]`.
+//! `rotation_deg`). Sphere and rectangle lights are surfaces (the camera sees them, they cast
+//! shadows) unless `"surface": false`, which makes them behave as lights do in Blender's
+//! Cycles: camera rays and shadow rays pass through the emitter, and other rays that reach it
+//! collect its emission (with MIS) and continue behind it. Colours are a number or `[r, g, b]`.
 
 use crate::camera::Camera;
 use crate::env::Environment;
@@ -70,6 +82,9 @@ fn default_up() -> [f64; 3] {
 fn one() -> f64 {
     1.0
 }
+fn yes() -> bool {
+    true
+}
 
 /// The camera.
 #[derive(Clone, Debug, Deserialize)]
@@ -96,9 +111,124 @@ pub struct TransformDesc {
     /// Rotations about x, then y, then z (degrees).
     #[serde(default)]
     pub rotate_deg: Option<[f64; 3]>,
-    /// Translation (applied last).
+    /// Translation (applied after scale and rotation).
     #[serde(default)]
     pub translate: Option<[f64; 3]>,
+    /// Row-major 4×4 affine matrix (applied last; the bottom row must be `[0, 0, 0, 1]`).
+    #[serde(default)]
+    pub matrix: Option<[[f64; 4]; 4]>,
+}
+
+/// A list of fixed-size elements: JSON arrays, or a `"base64:..."` string of little-endian
+/// 32-bit values (`f32`, or `u32` for indices).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Packed<T, const N: usize>(pub Vec<[T; N]>);
+
+/// A 32-bit value type that [`Packed`] can decode from little-endian bytes.
+pub trait Le32: Copy + Default {
+    /// From 4 little-endian bytes.
+    fn from_le(b: [u8; 4]) -> Self;
+}
+impl Le32 for f32 {
+    fn from_le(b: [u8; 4]) -> Self {
+        f32::from_le_bytes(b)
+    }
+}
+impl Le32 for u32 {
+    fn from_le(b: [u8; 4]) -> Self {
+        u32::from_le_bytes(b)
+    }
+}
+
+/// Decodes standard base64 (with or without `=` padding; whitespace is not allowed).
+pub fn decode_base64(text: &str) -> Result<Vec<u8>, String> {
+    fn val(c: u8) -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        } as u32)
+    }
+    let bytes = text.trim_end_matches('=').as_bytes();
+    if bytes.len() % 4 == 1 {
+        return Err("base64: truncated".into());
+    }
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let mut acc = 0u32;
+        for (k, &c) in chunk.iter().enumerate() {
+            let v = val(c).ok_or_else(|| format!("base64: invalid character {:?}", c as char))?;
+            acc |= v << (18 - 6 * k);
+        }
+        let n = chunk.len() * 6 / 8;
+        out.extend_from_slice(&acc.to_be_bytes()[1..1 + n]);
+    }
+    Ok(out)
+}
+
+impl<'de, T, const N: usize> Deserialize<'de> for Packed<T, N>
+where
+    T: Le32,
+    [T; N]: serde::de::DeserializeOwned,
+{
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged, bound = "[T; N]: serde::de::DeserializeOwned")]
+        enum Repr<T, const N: usize> {
+            Inline(Vec<[T; N]>),
+            Text(String),
+        }
+        use serde::de::Error;
+        let text = match Repr::<T, N>::deserialize(d) {
+            Ok(Repr::Inline(v)) => return Ok(Packed(v)),
+            Ok(Repr::Text(t)) => t,
+            Err(_) => {
+                return Err(D::Error::custom(format!(
+                    "expected an array of {N}-element arrays or a \"base64:...\" string"
+                )))
+            }
+        };
+        let body =
+            text.strip_prefix("base64:").ok_or_else(|| D::Error::custom("packed arrays start with \"base64:\""))?;
+        let bytes = decode_base64(body).map_err(D::Error::custom)?;
+        if bytes.len() % (4 * N) != 0 {
+            return Err(D::Error::custom(format!(
+                "base64 array: {} bytes is not a multiple of {}",
+                bytes.len(),
+                4 * N
+            )));
+        }
+        let v = bytes
+            .chunks_exact(4 * N)
+            .map(|el| {
+                let mut a = [T::default(); N];
+                for (k, x) in a.iter_mut().enumerate() {
+                    *x = T::from_le([el[4 * k], el[4 * k + 1], el[4 * k + 2], el[4 * k + 3]]);
+                }
+                a
+            })
+            .collect();
+        Ok(Packed(v))
+    }
+}
+
+/// Mesh data shared by instances (`"meshes": {NAME: {...}}`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshData {
+    /// Vertex positions.
+    pub positions: Packed<f32, 3>,
+    /// Triangles as vertex indices.
+    pub triangles: Packed<u32, 3>,
+    /// Vertex normals (optional).
+    #[serde(default)]
+    pub normals: Option<Packed<f32, 3>>,
+    /// Vertex texture coordinates (optional).
+    #[serde(default)]
+    pub uvs: Option<Packed<f32, 2>>,
 }
 
 /// A scene object.
@@ -153,23 +283,26 @@ pub enum ObjectDesc {
         /// OBJ path (relative to the scene file).
         #[serde(default)]
         file: Option<PathBuf>,
+        /// An entry of the scene's `meshes` (instead of `file` or inline arrays).
+        #[serde(default)]
+        mesh: Option<String>,
         /// Inline vertex positions (instead of `file`).
         #[serde(default)]
-        positions: Option<Vec<[f32; 3]>>,
+        positions: Option<Packed<f32, 3>>,
         /// Inline triangles as vertex indices.
         #[serde(default)]
-        triangles: Option<Vec<[u32; 3]>>,
+        triangles: Option<Packed<u32, 3>>,
         /// Inline vertex normals (optional).
         #[serde(default)]
-        normals: Option<Vec<[f32; 3]>>,
+        normals: Option<Packed<f32, 3>>,
         /// Inline vertex texture coordinates (optional).
         #[serde(default)]
-        uvs: Option<Vec<[f32; 2]>>,
+        uvs: Option<Packed<f32, 2>>,
         /// Material.
         material: Value,
-        /// Placement.
+        /// Placement (boxed: a matrix makes it large).
         #[serde(default)]
-        transform: Option<TransformDesc>,
+        transform: Option<Box<TransformDesc>>,
         /// Centre above y = 0 and scale to this bounding radius (applied before `transform`).
         #[serde(default)]
         fit_radius: Option<f64>,
@@ -219,6 +352,10 @@ pub enum LightDesc {
         radius: f64,
         /// Radiance.
         radiance: ColorDesc,
+        /// The emitter is a surface (seen by the camera, casting shadows); false: as Cycles'
+        /// lights, camera and shadow rays pass through it.
+        #[serde(default = "yes")]
+        surface: bool,
     },
     /// Rectangular area light.
     Rectangle {
@@ -233,6 +370,13 @@ pub enum LightDesc {
         /// Emit from both sides.
         #[serde(default)]
         two_sided: bool,
+        /// Only the ellipse inscribed in the parallelogram emits (disk and ellipse lights).
+        #[serde(default)]
+        ellipse: bool,
+        /// The emitter is a surface (seen by the camera, casting shadows); false: as Cycles'
+        /// lights, camera and shadow rays pass through it.
+        #[serde(default = "yes")]
+        surface: bool,
     },
     /// Environment at infinity.
     Environment {
@@ -260,6 +404,9 @@ pub struct SceneDesc {
     /// Named materials.
     #[serde(default)]
     pub materials: BTreeMap<String, Value>,
+    /// Named meshes that `mesh` objects instance by name.
+    #[serde(default)]
+    pub meshes: BTreeMap<String, MeshData>,
     /// Objects.
     pub objects: Vec<ObjectDesc>,
     /// Lights.
@@ -361,6 +508,49 @@ pub fn transform_mesh(mesh: &mut Mesh, t: &TransformDesc) {
     for n in &mut mesh.normals {
         *n = rot(v3(n.x / s.x, n.y / s.y, n.z / s.z)).normalize();
     }
+    if let Some(m) = &t.matrix {
+        apply_matrix(mesh, m);
+    }
+}
+
+/// Checks that a row-major 4×4 matrix is an invertible affine transform.
+pub fn check_matrix(m: &[[f64; 4]; 4]) -> Result<(), String> {
+    if m.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("matrix must be finite".into());
+    }
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err("matrix must be affine (bottom row [0, 0, 0, 1])".into());
+    }
+    if !(det3(m).abs() > 1e-30) {
+        return Err("matrix must be invertible".into());
+    }
+    Ok(())
+}
+
+fn det3(m: &[[f64; 4]; 4]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+/// Transforms positions by a row-major affine matrix and normals by its inverse transpose.
+pub fn apply_matrix(mesh: &mut Mesh, m: &[[f64; 4]; 4]) {
+    for p in &mut mesh.positions {
+        let q = [p.x as f64, p.y as f64, p.z as f64];
+        let r = |i: usize| m[i][0] * q[0] + m[i][1] * q[1] + m[i][2] * q[2] + m[i][3];
+        *p = v3(r(0) as f32, r(1) as f32, r(2) as f32);
+    }
+    // Inverse transpose of the 3×3 part = cofactor matrix / det (the 1/det only scales).
+    let c = |i: usize, j: usize| {
+        let (i1, i2, j1, j2) = ((i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3);
+        m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]
+    };
+    let cof = [[c(0, 0), c(0, 1), c(0, 2)], [c(1, 0), c(1, 1), c(1, 2)], [c(2, 0), c(2, 1), c(2, 2)]];
+    let sign = det3(m).signum();
+    for n in &mut mesh.normals {
+        let q = [n.x as f64, n.y as f64, n.z as f64];
+        let r = |i: usize| sign * (cof[i][0] * q[0] + cof[i][1] * q[1] + cof[i][2] * q[2]);
+        *n = v3(r(0) as f32, r(1) as f32, r(2) as f32).normalize();
+    }
 }
 
 /// Resolves a material reference: a name in `named`, a preset name, or inline JSON.
@@ -399,6 +589,17 @@ impl SceneDesc {
         }
         if let Some(m) = override_material {
             named.insert("paint".to_string(), m.clone());
+        }
+        let mut shared = BTreeMap::new();
+        for (k, m) in &self.meshes {
+            let mesh = inline_mesh(
+                &m.positions.0,
+                &m.triangles.0,
+                m.normals.as_ref().map(|v| &v.0[..]),
+                m.uvs.as_ref().map(|v| &v.0[..]),
+            )
+            .map_err(|e| format!("meshes.{k}: {e}"))?;
+            shared.insert(k.clone(), mesh);
         }
         let mut b = SceneBuilder::new();
         let mut cache: Vec<(String, u32)> = Vec::new();
@@ -439,19 +640,42 @@ impl SceneDesc {
                         m,
                     );
                 }
-                ObjectDesc::Mesh { file, positions, triangles, normals, uvs, material, transform, fit_radius } => {
+                ObjectDesc::Mesh {
+                    file,
+                    mesh,
+                    positions,
+                    triangles,
+                    normals,
+                    uvs,
+                    material,
+                    transform,
+                    fit_radius,
+                } => {
                     let m = mat(&mut b, material).map_err(ctx)?;
-                    let mut mesh = match (file, positions, triangles) {
-                        (Some(f), None, None) => load_obj(&base.join(f)).map_err(ctx)?,
-                        (None, Some(p), Some(t)) => {
-                            inline_mesh(p, t, normals.as_deref(), uvs.as_deref()).map_err(ctx)?
+                    let mut mesh = match (file, mesh, positions, triangles) {
+                        (Some(f), None, None, None) => load_obj(&base.join(f)).map_err(ctx)?,
+                        (None, Some(name), None, None) => shared
+                            .get(name)
+                            .cloned()
+                            .ok_or_else(|| ctx(format!("mesh \"{name}\" is not in \"meshes\"")))?,
+                        (None, None, Some(p), Some(t)) => {
+                            inline_mesh(&p.0, &t.0, normals.as_ref().map(|v| &v.0[..]), uvs.as_ref().map(|v| &v.0[..]))
+                                .map_err(ctx)?
                         }
-                        _ => return Err(ctx("a mesh needs either \"file\" or \"positions\" + \"triangles\"".into())),
+                        _ => {
+                            return Err(ctx(
+                                "a mesh needs exactly one of \"file\", \"mesh\" or \"positions\" + \"triangles\""
+                                    .into(),
+                            ))
+                        }
                     };
                     if let Some(r) = fit_radius {
                         fit_mesh(&mut mesh, *r as f32);
                     }
                     if let Some(t) = transform {
+                        if let Some(mx) = &t.matrix {
+                            check_matrix(mx).map_err(|e| ctx(format!("transform: {e}")))?;
+                        }
                         transform_mesh(&mut mesh, t);
                     }
                     b.mesh(mesh, m);
@@ -460,6 +684,10 @@ impl SceneDesc {
         }
         for (k, l) in self.lights.iter().enumerate() {
             let ctx = |e: String| format!("lights[{k}]: {e}");
+            let surface = match l {
+                LightDesc::Sphere { surface, .. } | LightDesc::Rectangle { surface, .. } => *surface,
+                _ => true,
+            };
             let light = match l {
                 LightDesc::Point { position, intensity } => {
                     Light::Point { position: v3a(*position), intensity: intensity.rgb() }
@@ -478,14 +706,15 @@ impl SceneDesc {
                 LightDesc::Sun { direction, irradiance, angle_deg } => {
                     Light::sun(v3a(*direction), irradiance.rgb(), *angle_deg as f32)
                 }
-                LightDesc::Sphere { center, radius, radiance } => Light::Sphere {
+                LightDesc::Sphere { center, radius, radiance, .. } => Light::Sphere {
                     sphere: Sphere { center: v3a(*center), radius: *radius as f32, uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                 },
-                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided } => Light::Rect {
+                LightDesc::Rectangle { corner, edge_u, edge_v, radiance, two_sided, ellipse, .. } => Light::Rect {
                     quad: Quad { corner: v3a(*corner), edge_u: v3a(*edge_u), edge_v: v3a(*edge_v), uv_scale: 1.0 },
                     radiance: radiance.rgb(),
                     two_sided: *two_sided,
+                    ellipse: *ellipse,
                 },
                 LightDesc::Environment { map, radiance, scale, rotation_deg } => {
                     let env = match map.as_deref() {
@@ -498,7 +727,11 @@ impl SceneDesc {
                     Light::Env(env)
                 }
             };
-            b.light(light);
+            if surface {
+                b.light(light);
+            } else {
+                b.light_no_surface(light);
+            }
         }
         let c = &self.camera;
         let camera = Camera::look_at(v3a(c.position), v3a(c.look_at), v3a(c.up), c.fov_deg as f32, width, height);
@@ -597,5 +830,193 @@ impl DefaultScene {
         let camera =
             Camera::look_at(v3(0.0, 1.6, 5.5), v3(0.0, 0.9, 0.0), v3(0.0, 1.0, 0.0), 30.0, self.width, self.height);
         Ok(b.build(camera))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::job::render_job;
+
+    fn b64(bytes: &[u8]) -> String {
+        const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut s = String::new();
+        for c in bytes.chunks(3) {
+            let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+            for k in 0..=c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn base64_decodes_with_and_without_padding() {
+        assert_eq!(decode_base64("TWFu").unwrap(), b"Man");
+        assert_eq!(decode_base64("TWE=").unwrap(), b"Ma");
+        assert_eq!(decode_base64("TQ==").unwrap(), b"M");
+        assert_eq!(decode_base64("TQ").unwrap(), b"M");
+        assert_eq!(decode_base64("").unwrap(), b"");
+        assert!(decode_base64("TW!u").unwrap_err().contains("invalid character"));
+        assert!(decode_base64("TWFuT").unwrap_err().contains("truncated"));
+        let all: Vec<u8> = (0..=255).collect();
+        assert_eq!(decode_base64(&b64(&all)).unwrap(), all);
+    }
+
+    #[test]
+    fn packed_arrays_inline_or_base64() {
+        let vals: Vec<f32> = vec![1.0, -2.5, 3.25, 0.0, 1e-3, 7.0];
+        let bytes: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let text = format!("\"base64:{}\"", b64(&bytes));
+        let a: Packed<f32, 3> = serde_json::from_str(&text).unwrap();
+        let b: Packed<f32, 3> = serde_json::from_str("[[1, -2.5, 3.25], [0, 0.001, 7]]").unwrap();
+        assert_eq!(a, b);
+        let idx: Packed<u32, 3> =
+            serde_json::from_str(&format!("\"base64:{}\"", b64(&[0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]))).unwrap();
+        assert_eq!(idx.0, vec![[0, 1, 2]]);
+        for bad in ["\"AAAA\"", "\"base64:AAAA\"", "\"base64:A!AA\"", "[[1, 2]]", "3"] {
+            assert!(serde_json::from_str::<Packed<f32, 3>>(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn matrix_transforms_positions_and_normals() {
+        // Non-uniform scale, a mirror and a translation: normals stay perpendicular to the surface.
+        let mut mesh = inline_mesh(
+            &[[0.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+            &[[0, 1, 2]],
+            Some(&[[-0.5f32.sqrt(), 0.0, 0.5f32.sqrt()]; 3]),
+            None,
+        )
+        .unwrap();
+        let m = [[3.0, 0.0, 0.0, 1.0], [0.0, -1.0, 0.0, 2.0], [0.0, 0.0, 0.5, -1.0], [0.0, 0.0, 0.0, 1.0]];
+        check_matrix(&m).unwrap();
+        apply_matrix(&mut mesh, &m);
+        assert_eq!(mesh.positions[1], v3(4.0, 2.0, -0.5));
+        let e1 = mesh.positions[1] - mesh.positions[0];
+        let e2 = mesh.positions[2] - mesh.positions[0];
+        for n in &mesh.normals {
+            assert!(n.dot(e1).abs() < 1e-6 && n.dot(e2).abs() < 1e-6 && (n.length() - 1.0).abs() < 1e-6, "{n:?}");
+        }
+        let singular = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        assert!(check_matrix(&singular).unwrap_err().contains("invertible"));
+        let projective = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 1.0, 1.0]];
+        assert!(check_matrix(&projective).unwrap_err().contains("affine"));
+    }
+
+    /// A 1×1 rectangle light (radiance 5) at height 1 above a Lambert floor (albedo 0.5) and a
+    /// sun from straight above (irradiance 1), seen from above through the light. As a surface,
+    /// the light hides the floor (its back is black) and shadows the sun; with `"surface": false`
+    /// the camera sees the floor below it, lit by both: `ρ L F + ρ E/π` with the view factor
+    /// `F` of the square from the point below its centre (four corner rectangles, Howell C-11).
+    #[test]
+    fn lights_that_are_not_surfaces() {
+        let job = |surface: bool| {
+            format!(
+                r#"{{"material": {{"model": "lambert", "albedo": 0.5}}, "width": 9, "height": 9, "spp": 512,
+                "max_depth": 1, "aovs": false,
+                "scene": {{"camera": {{"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov_deg": 2}},
+                  "objects": [{{"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [20, 20],
+                                "material": "paint"}}],
+                  "lights": [{{"type": "rectangle", "corner": [-0.5, 1, -0.5], "edge_u": [1, 0, 0],
+                               "edge_v": [0, 0, 1], "radiance": 5, "surface": {surface}}},
+                             {{"type": "sun", "direction": [0, 1, 0], "irradiance": 1}}]}}}}"#
+            )
+        };
+        let corner = |a: f64, b: f64| {
+            let (sa, sb) = ((1.0 + a * a).sqrt(), (1.0 + b * b).sqrt());
+            (a / sa * (b / sa).atan() + b / sb * (a / sb).atan()) / (2.0 * std::f64::consts::PI)
+        };
+        let expected = 0.5 * 5.0 * 4.0 * corner(0.5, 0.5) + 0.5 / std::f64::consts::PI;
+        let centre = |fb: &crate::Framebuffer| {
+            let mut sum = 0.0;
+            for y in 3..6 {
+                for x in 3..6 {
+                    sum += fb.color[y * 9 + x][0] as f64;
+                }
+            }
+            (sum / 9.0, fb.alpha[4 * 9 + 4])
+        };
+        let (c, a) = centre(&render_job(&job(true), &mut |_| true).unwrap());
+        assert!(c == 0.0 && a == 1.0, "a surface light hides the floor: {c} {a}");
+        let (c, a) = centre(&render_job(&job(false), &mut |_| true).unwrap());
+        assert!(a == 1.0 && (c - expected).abs() < 0.02 * expected, "{c} vs {expected}");
+    }
+
+    /// A disk light (the ellipse inscribed in a 1×1 square, radiance 5, height 1, not a surface)
+    /// above a Lambert floor (albedo 0.5), seen from above through it: on the axis the floor's
+    /// radiance is `ρ L R²/(R² + h²)` = 0.5 (the full square would give 0.599), and the camera
+    /// sees the floor through the disk.
+    #[test]
+    fn disk_lights() {
+        let job = r#"{"material": {"model": "lambert", "albedo": 0.5}, "width": 9, "height": 9, "spp": 512,
+            "max_depth": 1, "aovs": false,
+            "scene": {"camera": {"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov_deg": 2},
+              "objects": [{"type": "plane", "center": [0, 0, 0], "normal": [0, 1, 0], "size": [20, 20],
+                           "material": "paint"}],
+              "lights": [{"type": "rectangle", "corner": [-0.5, 1, -0.5], "edge_u": [1, 0, 0],
+                          "edge_v": [0, 0, 1], "radiance": 5, "ellipse": true, "surface": false}]}}"#;
+        let fb = render_job(job, &mut |_| true).unwrap();
+        let mut sum = 0.0;
+        for y in 3..6 {
+            for x in 3..6 {
+                sum += fb.color[y * 9 + x][0] as f64;
+            }
+        }
+        let c = sum / 9.0;
+        assert!((c - 0.5).abs() < 0.01, "{c} vs 0.5");
+        // As a surface, the disk hides the floor only inside the ellipse: a ray through the
+        // square's corner region reaches the floor.
+        let mut mesh_scene = job.replace("\"surface\": false", "\"surface\": true");
+        mesh_scene = mesh_scene.replace("\"fov_deg\": 2", "\"fov_deg\": 22");
+        let fb = render_job(&mesh_scene, &mut |_| true).unwrap();
+        // 9 px span 2·3·tan(11°) = 1.17 units at the floor (0.78 at the light): the centre pixel
+        // looks at the disk's back (black), the corner pixel past the disk's rim.
+        assert_eq!(fb.color[4 * 9 + 4][0], 0.0);
+        assert!(fb.color[0][0] > 0.05, "corner {}", fb.color[0][0]);
+    }
+
+    /// Two instances of one named mesh (a unit quad in z = 0), placed by matrices left and right of
+    /// the centre, in the white furnace: the instances are white (1), the gap between them is
+    /// the environment, or black with a transparent film.
+    #[test]
+    fn instanced_meshes_with_matrices_and_transparent_film() {
+        let quad_pos: Vec<u8> = [[-0.5f32, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]]
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let scene = |transparent: bool| {
+            format!(
+                r#"{{"material": {{"model": "lambert", "albedo": 1}}, "width": 24, "height": 8, "spp": 16,
+                "aovs": false, "transparent": {transparent},
+                "scene": {{"camera": {{"position": [0, 0, 10], "look_at": [0, 0, 0], "fov_deg": 7.628}},
+                  "meshes": {{"quad": {{"positions": "base64:{}", "triangles": [[0, 1, 2], [0, 2, 3]]}}}},
+                  "objects": [
+                    {{"type": "mesh", "mesh": "quad", "material": "paint",
+                      "transform": {{"matrix": [[1, 0, 0, -1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}}}},
+                    {{"type": "mesh", "mesh": "quad", "material": "paint",
+                      "transform": {{"scale": 0.5, "matrix": [[2, 0, 0, 1], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}}}}],
+                  "lights": [{{"type": "environment", "radiance": 0.5}}]}}}}"#,
+                b64(&quad_pos)
+            )
+        };
+        for transparent in [false, true] {
+            let fb = render_job(&scene(transparent), &mut |_| true).unwrap();
+            // 24 px span 4 units at the quads' depth: x in [-1.5, -0.5] is pixels 3..9, the
+            // centre gap pixels 9..15, the right quad pixels 15..21.
+            let at = |x: usize| (fb.color[4 * 24 + x][0], fb.alpha[4 * 24 + x]);
+            for x in [5, 6, 17, 18] {
+                let (c, a) = at(x);
+                assert!(a == 1.0 && (c - 0.5).abs() < 0.05, "x {x}: {c} {a}");
+            }
+            let (c, a) = at(12);
+            assert_eq!(a, 0.0);
+            assert!(if transparent { c == 0.0 } else { (c - 0.5).abs() < 1e-6 }, "gap {c}");
+        }
+        let bad = r#"{"scene": {"camera": {"position": [0, 0, 1], "look_at": [0, 0, 0], "fov_deg": 30},
+            "objects": [{"type": "mesh", "mesh": "nope", "material": "white_lambert"}]}}"#;
+        let e = render_job(bad, &mut |_| true).unwrap_err().to_string();
+        assert!(e.contains("\"nope\" is not in \"meshes\""), "{e}");
     }
 }

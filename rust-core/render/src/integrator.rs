@@ -42,6 +42,9 @@ pub struct RenderSettings {
     /// Jitter camera rays over the pixel (box filter); without, every ray goes through the
     /// pixel centre (analytic tests).
     pub jitter: bool,
+    /// Camera rays that miss every surface see nothing (black, alpha 0) instead of the
+    /// environment: a transparent film, for compositing.
+    pub transparent: bool,
 }
 
 impl Default for RenderSettings {
@@ -57,6 +60,7 @@ impl Default for RenderSettings {
             rr_depth: 3,
             clamp: 0.0,
             jitter: true,
+            transparent: false,
         }
     }
 }
@@ -220,8 +224,15 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
     let mut prev_pdf = 0.0f32;
     let mut prev_p = ray.o;
     let mut depth = 0u32;
+    // Distance travelled since the last scattering vertex through emitters that are not
+    // surfaces (for the solid-angle density of what lies behind them), and how many.
+    let mut passed = 0.0f32;
+    let mut passes = 0u32;
     loop {
         let Some(hit) = scene.intersect(&ray) else {
+            if depth == 0 && set.transparent {
+                break;
+            }
             for &li in scene.infinite_lights() {
                 let light = &scene.lights[li as usize];
                 let le = light.escaped(ray.d);
@@ -238,6 +249,30 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
             }
             break;
         };
+        if hit.pass_through {
+            // An emitter that is not a surface: camera rays do not see it; other rays collect
+            // its emission and go on behind it.
+            if let (Some(li), true) = (hit.light, depth > 0) {
+                let light = &scene.lights[li as usize];
+                let le = light.emitted(hit.surf.ng, ray.d);
+                if !le.is_black() {
+                    let w = if prev_delta {
+                        1.0
+                    } else {
+                        let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, passed + hit.t);
+                        power_heuristic(prev_pdf, pl)
+                    };
+                    out.radiance += beta * le * w;
+                }
+            }
+            passes += 1;
+            if passes > 64 {
+                break;
+            }
+            passed += hit.t;
+            ray = Ray::new(offset_origin(hit.surf.p, hit.surf.ng, ray.d), ray.d);
+            continue;
+        }
         if depth == 0 {
             out.alpha = 1.0;
         }
@@ -249,7 +284,7 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
                 let w = if prev_delta {
                     1.0
                 } else {
-                    let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, hit.t);
+                    let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, passed + hit.t);
                     power_heuristic(prev_pdf, pl)
                 };
                 out.radiance += beta * le * w;
@@ -323,6 +358,7 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
         prev_pdf = s.pdf;
         prev_p = p;
         ray = Ray::new(offset_origin(p, ng, wi_world), wi_world);
+        passed = 0.0;
         depth += 1;
         if depth >= set.rr_depth {
             let q = beta.max_channel();

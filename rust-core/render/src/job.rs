@@ -10,7 +10,8 @@
 //! Keys: `preset` or `material` (material JSON; the built-in scene's sphere, or the scene's
 //! material named `"paint"`), `scene` (an inline scene, see [`crate::desc`]; default: the
 //! built-in scene), `width`, `height` (512), `spp` (64), `max_depth` (8), `seed` (0),
-//! `threads` (0 = all cores), `aovs` (true), `sparkle` (true), `clamp` (0), and for the
+//! `threads` (0 = all cores), `aovs` (true), `sparkle` (true), `clamp` (0), `transparent`
+//! (false: camera rays that miss see black, alpha 0, instead of the environment), and for the
 //! built-in scene `env` (`"studio"`, `"uniform:L"` or a lat-long file), `env_scale`,
 //! `env_rotation_deg`, `key_light`, `floor`.
 
@@ -80,6 +81,9 @@ pub struct RenderJob {
     /// Path contribution clamp (0 = off).
     #[serde(default)]
     pub clamp: f32,
+    /// Transparent film: camera rays that miss see black (alpha 0).
+    #[serde(default)]
+    pub transparent: bool,
     /// Built-in scene: environment.
     #[serde(default = "d_studio")]
     pub env: String,
@@ -134,6 +138,7 @@ impl RenderJob {
             aovs: self.aovs,
             footprints: self.sparkle,
             clamp: self.clamp,
+            transparent: self.transparent,
             ..Default::default()
         }
     }

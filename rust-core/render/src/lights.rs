@@ -51,7 +51,8 @@ pub enum Light {
         /// Emitted radiance.
         radiance: C,
     },
-    /// A rectangular area light emitting from its front side (`edge_u × edge_v`).
+    /// A rectangular area light emitting from its front side (`edge_u × edge_v`), or the
+    /// ellipse inscribed in it (disk and ellipse lights).
     Rect {
         /// The emitting rectangle.
         quad: Quad,
@@ -59,6 +60,8 @@ pub enum Light {
         radiance: C,
         /// Emit from both sides.
         two_sided: bool,
+        /// Only the ellipse inscribed in the parallelogram emits (and is geometry).
+        ellipse: bool,
     },
     /// The environment at infinity.
     Env(Environment),
@@ -175,8 +178,14 @@ impl Light {
                 let dist = sphere.intersect(&ray, f32::INFINITY).unwrap_or(dc - sphere.radius);
                 Some(LightSample { wi, li: *radiance, pdf: 1.0 / cone_solid_angle(cos_max), dist, delta: false })
             }
-            Light::Rect { quad, radiance, two_sided } => {
-                let q = quad.corner + quad.edge_u * u[0] + quad.edge_v * u[1];
+            Light::Rect { quad, radiance, two_sided, ellipse } => {
+                let (a, b) = if *ellipse {
+                    let (x, y) = lacquer::sampling::concentric_disk(u[0], u[1]);
+                    (0.5 * (x + 1.0), 0.5 * (y + 1.0))
+                } else {
+                    (u[0], u[1])
+                };
+                let q = quad.corner + quad.edge_u * a + quad.edge_v * b;
                 let d = q - p;
                 let dist2 = d.length_squared();
                 if !(dist2 > 0.0) {
@@ -188,7 +197,7 @@ impl Light {
                 if cos_l <= 0.0 && !*two_sided || cos_l == 0.0 {
                     return None;
                 }
-                let pdf = dist2 / (quad.area() * cos_l.abs());
+                let pdf = dist2 / (emitter_area(quad, *ellipse) * cos_l.abs());
                 Some(LightSample { wi, li: *radiance, pdf, dist, delta: false })
             }
             Light::Env(env) => {
@@ -220,12 +229,12 @@ impl Light {
                 }
                 1.0 / cone_solid_angle((1.0 - r2 / d2).max(0.0).sqrt())
             }
-            Light::Rect { quad, two_sided, .. } => {
+            Light::Rect { quad, two_sided, ellipse, .. } => {
                 let cos_l = -wi.dot(quad.normal());
                 if cos_l <= 0.0 && !*two_sided || cos_l == 0.0 {
                     return 0.0;
                 }
-                dist * dist / (quad.area() * cos_l.abs())
+                dist * dist / (emitter_area(quad, *ellipse) * cos_l.abs())
             }
             Light::Env(env) => env.pdf(wi),
         }
@@ -301,8 +310,8 @@ impl Light {
             }
             Light::Sun { irradiance, .. } => irradiance.luminance() * area,
             Light::Sphere { sphere, radiance } => radiance.luminance() * 4.0 * PI * PI * sphere.radius * sphere.radius,
-            Light::Rect { quad, radiance, two_sided } => {
-                radiance.luminance() * PI * quad.area() * if *two_sided { 2.0 } else { 1.0 }
+            Light::Rect { quad, radiance, two_sided, ellipse } => {
+                radiance.luminance() * PI * emitter_area(quad, *ellipse) * if *two_sided { 2.0 } else { 1.0 }
             }
             Light::Env(env) => env.mean_radiance().luminance() * PI * area,
         };
@@ -312,6 +321,19 @@ impl Light {
             0.0
         }
     }
+}
+
+/// Area of a rectangle light's emitter: the parallelogram, or its inscribed ellipse (π/4 of it).
+fn emitter_area(quad: &Quad, ellipse: bool) -> f32 {
+    quad.area() * if ellipse { PI / 4.0 } else { 1.0 }
+}
+
+/// True when the quad coordinates `(a, b)` ∈ [0, 1]² lie in the inscribed ellipse.
+#[inline]
+#[must_use]
+pub fn in_ellipse(a: f32, b: f32) -> bool {
+    let (x, y) = (2.0 * a - 1.0, 2.0 * b - 1.0);
+    x * x + y * y <= 1.0
 }
 
 /// Smooth spot edge: 1 inside the inner cone, 0 outside the outer one, smoothstep between.
@@ -358,7 +380,7 @@ mod tests {
         assert!((e - expected).abs() < 0.01 * expected, "{e} vs {expected}");
 
         let quad = Quad::centered(v3(0.0, 2.0, 0.0), v3(0.0, -1.0, 0.0), v3(1.0, 0.0, 0.0), 1.0, 1.0, 1.0);
-        let l = Light::Rect { quad, radiance: Rgb::splat(1.0), two_sided: false };
+        let l = Light::Rect { quad, radiance: Rgb::splat(1.0), two_sided: false, ellipse: false };
         for _ in 0..100 {
             let s = l.sample(p, [rng.uniform() as f32, rng.uniform() as f32]).unwrap();
             assert!((s.pdf - l.pdf(p, s.wi, s.dist)).abs() < 1e-4 * s.pdf);

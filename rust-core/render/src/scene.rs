@@ -15,6 +15,10 @@ use lacquer::Material;
 struct ShapeRef {
     material: Option<u32>,
     light: Option<u32>,
+    /// An emitter that is not a surface: rays pass through it (see [`SceneBuilder::light_no_surface`]).
+    pass_through: bool,
+    /// A rectangle of which only the inscribed ellipse exists (disk and ellipse lights).
+    ellipse: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -37,6 +41,9 @@ pub struct Hit {
     pub material: Option<u32>,
     /// Index of the area light this surface belongs to.
     pub light: Option<u32>,
+    /// The surface is an emitter that rays pass through (camera rays do not see it, shadow
+    /// rays ignore it, other rays collect its emission and go on).
+    pub pass_through: bool,
 }
 
 /// Collects shapes, materials and lights.
@@ -64,28 +71,40 @@ impl SceneBuilder {
 
     /// Adds a triangle mesh made of material `m`.
     pub fn mesh(&mut self, mesh: Mesh, m: u32) -> &mut Self {
-        self.meshes.push((mesh, ShapeRef { material: Some(m), light: None }));
+        self.meshes.push((mesh, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
     /// Adds a sphere made of material `m`.
     pub fn sphere(&mut self, s: Sphere, m: u32) -> &mut Self {
-        self.spheres.push((s, ShapeRef { material: Some(m), light: None }));
+        self.spheres.push((s, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
     /// Adds a rectangle made of material `m`.
     pub fn quad(&mut self, q: Quad, m: u32) -> &mut Self {
-        self.quads.push((q, ShapeRef { material: Some(m), light: None }));
+        self.quads.push((q, ShapeRef { material: Some(m), light: None, pass_through: false, ellipse: false }));
         self
     }
 
     /// Adds a light; sphere and rectangle lights also become (black, emitting) geometry.
     pub fn light(&mut self, l: Light) -> &mut Self {
+        self.add_light(l, false)
+    }
+
+    /// Adds a light whose emitter (sphere or rectangle) is not a surface, as lights are in
+    /// Blender's Cycles: camera rays do not see it and pass through, it casts no shadows, and
+    /// other rays that reach it collect its emission (with MIS) and continue behind it.
+    pub fn light_no_surface(&mut self, l: Light) -> &mut Self {
+        self.add_light(l, true)
+    }
+
+    fn add_light(&mut self, l: Light, pass_through: bool) -> &mut Self {
         let idx = self.lights.len() as u32;
+        let r = ShapeRef { material: None, light: Some(idx), pass_through, ellipse: false };
         match &l {
-            Light::Sphere { sphere, .. } => self.spheres.push((*sphere, ShapeRef { material: None, light: Some(idx) })),
-            Light::Rect { quad, .. } => self.quads.push((*quad, ShapeRef { material: None, light: Some(idx) })),
+            Light::Sphere { sphere, .. } => self.spheres.push((*sphere, r)),
+            Light::Rect { quad, ellipse, .. } => self.quads.push((*quad, ShapeRef { ellipse: *ellipse, ..r })),
             _ => {}
         }
         self.lights.push(l);
@@ -229,7 +248,10 @@ impl Scene {
         match self.prims[p as usize] {
             Prim::Triangle { mesh, tri } => self.meshes[mesh as usize].intersect(tri as usize, ray, tmax),
             Prim::Sphere(s) => self.spheres[s as usize].intersect(ray, tmax).map(|t| (t, 0.0, 0.0)),
-            Prim::Quad(q) => self.quads[q as usize].intersect(ray, tmax),
+            Prim::Quad(q) => {
+                let h = self.quads[q as usize].intersect(ray, tmax)?;
+                (!self.quad_refs[q as usize].ellipse || crate::lights::in_ellipse(h.1, h.2)).then_some(h)
+            }
         }
     }
 
@@ -253,14 +275,27 @@ impl Scene {
             Prim::Sphere(s) => (self.spheres[s as usize].surface(ray.at(t)), self.sphere_refs[s as usize], true),
             Prim::Quad(q) => (self.quads[q as usize].surface(a, b), self.quad_refs[q as usize], true),
         };
-        Some(Hit { t, surf, has_uv, material: shape.material, light: shape.light })
+        Some(Hit { t, surf, has_uv, material: shape.material, light: shape.light, pass_through: shape.pass_through })
     }
 
-    /// True when anything blocks `ray` before `ray.tmax`.
+    fn passes_through(&self, p: u32) -> bool {
+        match self.prims[p as usize] {
+            Prim::Triangle { .. } => false,
+            Prim::Sphere(s) => self.sphere_refs[s as usize].pass_through,
+            Prim::Quad(q) => self.quad_refs[q as usize].pass_through,
+        }
+    }
+
+    /// True when anything blocks `ray` before `ray.tmax` (emitters that are not surfaces do not).
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
         let mut r = *ray;
-        self.bvh.traverse(&mut r, true, |p, tmax| self.test(p, ray, tmax).map(|h| h.0))
+        self.bvh.traverse(&mut r, true, |p, tmax| {
+            if self.passes_through(p) {
+                return None;
+            }
+            self.test(p, ray, tmax).map(|h| h.0)
+        })
     }
 
     /// The point on the image a world point projects to (tests, sheet labels).

@@ -227,6 +227,7 @@ fn area_lights_match_closed_form_irradiance() {
                 quad: Quad::centered(v3(0.0, 1.0, 0.0), v3(0.0, -1.0, 0.0), v3(1.0, 0.0, 0.0), 1.0, 1.0, 1.0),
                 radiance: lacquer::Rgb::splat(radiance as f32),
                 two_sided: false,
+                ellipse: false,
             },
             rho * radiance * 4.0 * f_corner,
         ),

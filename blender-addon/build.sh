@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Builds the installable Blender extension zip: dist/lacquer-<version>.zip (repository root).
+#
+#   bash blender-addon/build.sh            # prints the zip's path on stdout
+#   bash blender-addon/build.sh --out DIR  # another output folder
+#
+# Steps: release build of liblacquer (cargo, honours CARGO_TARGET_DIR), the `lacquer` Python
+# wheel built from c-api/python exactly as c-api/test.sh does (pinned build + setuptools in
+# .venv-build), then the extension folder blender-addon/extension/ staged with the wheel in
+# wheels/ and its blender_manifest.toml pointing at it, zipped in the layout
+# `blender --command extension build` produces (manifest at the zip's root).
+# Works from a fresh clone with a Rust toolchain and python3; no Blender is needed.
+# Progress goes to stderr; stdout is only the zip's path.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd "$here/.." && pwd)"
+out="$root/dist"
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --out) out="$2"; shift 2 ;;
+    *) echo "build.sh: unknown option $1" >&2; exit 2 ;;
+  esac
+done
+log() { printf '%s\n' "$*" >&2; }
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
+
+log "=== cargo build --release -p lacquer-capi"
+(cd "$root" && cargo build --release -q -p lacquer-capi) >&2
+lib="$CARGO_TARGET_DIR/release/liblacquer.so"
+[ -f "$lib" ] || { log "build.sh: $lib not found"; exit 1; }
+
+venv="${LACQUER_BUILD_VENV:-$root/.venv-build}"
+pins="build==1.6.1 setuptools==84.2.1"
+if ! [ -f "$venv/.lacquer-pins" ] || [ "$(cat "$venv/.lacquer-pins")" != "$pins" ]; then
+  log "=== build venv $venv ($pins)"
+  if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ]; then sudo_=""; else sudo_="sudo"; fi
+    $sudo_ apt-get update -qq >&2 && DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq python3-venv >&2
+  fi
+  python3 -m venv "$venv" >&2
+  # shellcheck disable=SC2086
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check $pins >&2
+  echo "$pins" >"$venv/.lacquer-pins"
+fi
+
+work="$(mktemp -d "${TMPDIR:-/tmp}/lacquer-ext-build.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+# The release profile keeps debug info (for profiling); the wheel does not need it.
+cp "$lib" "$work/liblacquer.so"
+if command -v strip >/dev/null 2>&1; then strip --strip-debug "$work/liblacquer.so"; fi
+lib="$work/liblacquer.so"
+log "=== lacquer wheel"
+cp -r "$root/c-api/python" "$work/pysrc"
+rm -rf "$work/pysrc/tests" "$work/pysrc/build" "$work/pysrc/dist" "$work/pysrc"/*.egg-info
+LACQUER_BUILD_LIBRARY="$lib" "$venv/bin/python" -m build --wheel --no-isolation --outdir "$work/wheels" "$work/pysrc" >&2
+wheel="$(cd "$work/wheels" && ls lacquer-*.whl)"
+[ "$(printf '%s\n' "$wheel" | wc -l)" = 1 ] || { log "build.sh: expected one wheel, got: $wheel"; exit 1; }
+
+log "=== stage and zip the extension"
+"$venv/bin/python" - "$here/extension" "$work/wheels/$wheel" "$out" <<'PY'
+import pathlib, re, shutil, sys, zipfile
+
+src, wheel, out = (pathlib.Path(a) for a in sys.argv[1:4])
+# lacquer-<version>-py3-none-<platform>.whl
+_, version, _, _, platform = wheel.name[: -len(".whl")].split("-")
+blender_platform = {"linux_x86_64": "linux-x64", "linux_aarch64": "linux-arm64", "win_amd64": "windows-x64",
+                    "macosx_11_0_arm64": "macos-arm64", "macosx_10_12_x86_64": "macos-x64"}.get(platform)
+if blender_platform is None and platform.startswith("manylinux"):
+    blender_platform = "linux-x64" if platform.endswith("x86_64") else "linux-arm64"
+if blender_platform is None:
+    sys.exit(f"build.sh: unknown wheel platform {platform}")
+manifest = (src / "blender_manifest.toml").read_text()
+for key, value in (("version", f'"{version}"'), ("platforms", f'["{blender_platform}"]'),
+                   ("wheels", f'["./wheels/{wheel.name}"]')):
+    manifest, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", manifest)
+    assert n == 1, key
+out.mkdir(parents=True, exist_ok=True)
+zip_path = out / f"lacquer-{version}.zip"
+skip = re.compile(r"(__pycache__|\.pyc$|^wheels/)")
+with zipfile.ZipFile(zip_path, "w", zipfile.ZIP_DEFLATED) as z:
+    z.writestr("blender_manifest.toml", manifest)
+    for f in sorted(src.rglob("*")):
+        rel = f.relative_to(src).as_posix()
+        if f.is_file() and rel != "blender_manifest.toml" and not skip.search(rel):
+            z.write(f, rel)
+    z.write(wheel, f"wheels/{wheel.name}")
+print(zip_path.resolve())
+PY

@@ -1,0 +1,98 @@
+"""What the core says about the paint: its parameters and presets, read once from the `lacquer`
+wheel (``lacquer.models()``, ``lacquer.presets()``), plus the display names of the presets.
+
+Nothing here is physics; the ranges, defaults, units and preset values are the core's.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+
+import lacquer
+
+MODEL = "coated_paint"
+
+#: Parameters the add-on sets itself rather than showing them (the LACQUER engine gives every
+#: mesh a physical uv, see export.py, and sets the scale from it).
+HIDDEN = {"surface_scale_mm"}
+
+#: Panel sections, in order; every parameter of the model not listed lands in "Other".
+SECTIONS = (
+    ("Clearcoat", ("coat_ior", "coat_roughness", "coat_thickness_um", "coat_absorption")),
+    ("Basecoat", ("base_color", "base_metallic", "base_roughness")),
+    ("Metallic flakes", ("flake_density", "flake_size_um", "flake_orientation_deg", "flake_material")),
+    ("Pearlescent flakes", ("pearl_density", "pearl_size_um", "pearl_film_nm", "pearl_film_ior",
+                            "pearl_substrate_ior")),
+    ("Sparkle", ("sparkle",)),
+)
+
+LABELS = {
+    "base_color": "Pigment Color",
+    "coat_ior": "Coat IOR",
+    "coat_roughness": "Coat Roughness (α)",
+    "coat_thickness_um": "Coat Thickness (µm)",
+    "coat_absorption": "Coat Absorption (1/mm)",
+    "flake_density": "Flake Density (%)",
+    "flake_size_um": "Flake Size (µm)",
+    "flake_orientation_deg": "Flake Orientation (°)",
+    "flake_material": "Flake Metal",
+    "base_metallic": "Metallic Base",
+    "base_roughness": "Metallic Base Roughness (α)",
+    "pearl_density": "Pearl Density (%)",
+    "pearl_size_um": "Pearl Size (µm)",
+    "pearl_film_nm": "Pearl Film (nm)",
+    "pearl_film_ior": "Pearl Film IOR",
+    "pearl_substrate_ior": "Pearl Substrate IOR",
+    "sparkle": "Sparkle",
+}
+
+
+@functools.lru_cache(maxsize=None)
+def params() -> tuple:
+    """The coated-paint parameters as the core lists them (name, kind, default, min, max, unit, doc)."""
+    for m in lacquer.models():
+        if m["name"] == MODEL:
+            return tuple(m["params"])
+    raise RuntimeError(f"the lacquer library has no model {MODEL!r}")
+
+
+@functools.lru_cache(maxsize=None)
+def model_params(name: str) -> dict:
+    """Parameters of any registered model by name (empty if the model does not exist)."""
+    for m in lacquer.models():
+        if m["name"] == name:
+            return {p["name"]: p for p in m["params"]}
+    return {}
+
+
+@functools.lru_cache(maxsize=None)
+def presets() -> tuple:
+    """The coated-paint presets: (name, label, description, material dict)."""
+    out = []
+    for p in lacquer.presets():
+        if p["material"].get("model") == MODEL:
+            out.append((p["name"], preset_label(p["name"]), p.get("description", ""), p["material"]))
+    return tuple(out)
+
+
+def preset(name: str) -> dict:
+    """The full material JSON of a preset."""
+    for n, _, _, material in presets():
+        if n == name:
+            return dict(material)
+    raise KeyError(f"no coated-paint preset named {name!r}")
+
+
+def preset_label(name: str) -> str:
+    """Display name: gold_flake_8 → "Gold metallic 8 %", gold_flake_8_size_15 → "Gold metallic 8 %, 15 µm"."""
+    m = re.fullmatch(r"(gold|silver)_flake_(\d+)(?:_size_(\d+))?", name)
+    if m:
+        label = f"{m.group(1).capitalize()} metallic {m.group(2)} %"
+        return label + (f", {m.group(3)} µm" if m.group(3) else "")
+    return name.replace("_", " ").capitalize()
+
+
+def is_thesis(name: str) -> bool:
+    """The thesis' gold/silver series (density and size)."""
+    return re.fullmatch(r"(gold|silver)_flake_\d+(_size_\d+)?", name) is not None

@@ -1,0 +1,504 @@
+"""Blender scene → lacquer render job (docs/render.md, rust-core/render/src/desc.rs).
+
+Everything the LACQUER engine hands the renderer goes through here: the evaluated depsgraph's
+meshes (loop triangles, corner normals, foreach_get into numpy) and their instances, the camera,
+point/spot/sun/area lights, the world, and the materials. The conversions:
+
+* **Axes** (the only place): Blender is z-up, the renderer y-up; ``Y_UP`` maps Blender
+  (x, y, z) to renderer (x, z, −y), a rotation, applied to every matrix, point and direction.
+* **Lights** are not surfaces, as in Cycles: the camera does not see area and sphere lights and
+  they cast no shadows; rays that reach them collect their emission (``"surface": false``).
+* **Units**: 1 Blender unit = 1 m. Lights follow Cycles: a point light of power P watts has
+  intensity P/(4π) W/sr (a sphere of radiance P/(4π²r²) when its radius r > 0), a spot is a
+  point light masked by its cone (blend = the smooth fraction of the cone), a sun's strength is
+  its irradiance in W/m², an area light of power P and area A has radiance P/(πA).
+* **Sparkle uv**: the renderer's sparkle needs uv in physical units. Every triangle gets its own
+  planar uv: its corners' object coordinates × the instance's per-axis scale (metres on the
+  object, as the node group's Voronoi cells use), in an orthonormal frame of its plane. One uv
+  unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` = 1000), so
+  flakes have their true size and stick to the object.
+* **Materials**: a Lacquer material is its paint parameters exactly; any other material is
+  read from its Principled BSDF into ``{"model": "principled", ...}`` (a Diffuse BSDF into
+  ``lambert``), with a message naming what was approximated.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import os
+import tempfile
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+from . import catalog, props
+
+#: Blender (z-up) → renderer (y-up): (x, y, z) → (x, z, −y).
+Y_UP = Matrix(((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0), (0.0, -1.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "CURVES", "SURFACE", "META", "FONT"}
+
+DEFAULT_GREY = [0.8, 0.8, 0.8]  # Blender's default surface (no material)
+
+
+class Report:
+    """Messages for the user: what was approximated or left out (deduplicated, counted)."""
+
+    def __init__(self):
+        self.items: dict[str, int] = {}
+
+    def warn(self, message: str):
+        self.items[message] = self.items.get(message, 0) + 1
+
+    def lines(self) -> list[str]:
+        return [m if n == 1 else f"{m} (×{n})" for m, n in self.items.items()]
+
+
+def _vec(v) -> list:
+    return [float(x) for x in v]
+
+
+def _point(p) -> list:
+    return _vec((Y_UP @ Vector((p[0], p[1], p[2], 1.0)))[:3])
+
+
+def _dir(d) -> list:
+    return _vec(Y_UP.to_3x3() @ Vector(d))
+
+
+def _b64(a: np.ndarray, dtype) -> str:
+    """Little-endian base64 array, the compact form the scene format accepts for mesh arrays."""
+    data = np.ascontiguousarray(a, dtype=np.dtype(dtype).newbyteorder("<")).tobytes()
+    return "base64:" + base64.b64encode(data).decode()
+
+
+# --- meshes ----------------------------------------------------------------------------------
+
+
+def _mesh_arrays(mesh, axis_scale) -> dict:
+    """Unwelded triangle arrays of an evaluated mesh: per-corner positions and normals (object
+    space), planar uv in metres (object space × the instance's per-axis scale), and the material
+    index of each triangle."""
+    mesh.calc_loop_triangles()
+    tris = mesh.loop_triangles
+    n = len(tris)
+    if n == 0:
+        return {}
+    verts = np.empty(n * 3, np.int32)
+    loops = np.empty(n * 3, np.int32)
+    mat_index = np.empty(n, np.int32)
+    tris.foreach_get("vertices", verts)
+    tris.foreach_get("loops", loops)
+    tris.foreach_get("material_index", mat_index)
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    corner_n = np.empty(len(mesh.loops) * 3, np.float32)
+    if hasattr(mesh, "corner_normals"):  # Blender 4.1+
+        mesh.corner_normals.foreach_get("vector", corner_n)
+    else:  # pragma: no cover (4.0)
+        mesh.loops.foreach_get("normal", corner_n)
+    corner_n = corner_n.reshape(-1, 3)
+    p_obj = co[verts].reshape(n, 3, 3)
+    nrm = corner_n[loops].reshape(n, 3, 3)
+    # Planar uv per triangle: coordinates (metres) in an orthonormal frame (t, b) of its plane.
+    p = p_obj.astype(np.float64) * np.asarray(axis_scale, np.float64)
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(ng, axis=1, keepdims=True)
+    ok = length[:, 0] > 0
+    ng = np.where(ok[:, None], ng / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    helper = np.where((np.abs(ng[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    t = np.cross(helper, ng)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    bt = np.cross(ng, t)
+    uv = np.stack([np.einsum("tkc,tc->tk", p, t), np.einsum("tkc,tc->tk", p, bt)], axis=-1)
+    return {
+        "positions": p_obj.reshape(-1, 3),
+        "normals": nrm.reshape(-1, 3),
+        "uvs": uv.reshape(-1, 2).astype(np.float32),
+        "material_index": mat_index,
+    }
+
+
+# --- materials -------------------------------------------------------------------------------
+
+
+def _principled_params() -> dict:
+    return catalog.model_params("principled")
+
+
+def _clamp_to(params: dict, name: str, value):
+    p = params.get(name)
+    if p is None:
+        return value
+    lo, hi = float(p["min"]), float(p["max"])
+    if isinstance(value, list):
+        return [min(max(float(v), lo), hi) for v in value]
+    return min(max(float(value), lo), hi)
+
+
+def _socket_value(node, name, report, mat_name):
+    sock = node.inputs.get(name)
+    if sock is None:
+        return None
+    if sock.is_linked:
+        report.warn(f"material \"{mat_name}\": {node.name}.{name} is connected to nodes; LACQUER uses its "
+                    f"unconnected value")
+    v = sock.default_value
+    try:
+        return [float(x) for x in v][:3]
+    except TypeError:
+        return float(v)
+
+
+def _surface_node(mat):
+    if not getattr(mat, "node_tree", None):
+        return None
+    out = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output),
+               None)
+    if out is None or not out.inputs["Surface"].is_linked:
+        return None
+    node = out.inputs["Surface"].links[0].from_node
+    while node.bl_idname == "NodeReroute" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node
+
+
+#: Principled BSDF socket → `principled` model parameter (contract §1).
+PRINCIPLED_SOCKETS = (
+    ("Base Color", "base_color"), ("Metallic", "metallic"), ("Roughness", "roughness"), ("IOR", "ior"),
+    ("Specular IOR Level", "specular_ior_level"), ("Specular Tint", "specular_tint"),
+    ("Coat Weight", "coat_weight"), ("Coat Roughness", "coat_roughness"), ("Coat IOR", "coat_ior"),
+    ("Coat Tint", "coat_tint"), ("Thin Film Thickness", "thin_film_thickness"), ("Thin Film IOR", "thin_film_ior"),
+)
+
+#: Principled inputs the `principled` model does not have: warn when they are in use.
+PRINCIPLED_IGNORED = (("Subsurface Weight", 0.0), ("Transmission Weight", 0.0), ("Sheen Weight", 0.0),
+                      ("Emission Strength", 0.0), ("Anisotropic", 0.0), ("Alpha", 1.0), ("Diffuse Roughness", 0.0))
+
+
+def material_desc(mat, report: Report) -> dict:
+    """Material JSON for a Blender material (None → Blender's default grey)."""
+    if mat is None:
+        return {"model": "lambert", "albedo": DEFAULT_GREY}
+    settings = getattr(mat, "lacquer", None)
+    if settings is not None and settings.enabled:
+        return props.material_json(settings)
+    node = _surface_node(mat)
+    principled = _principled_params()
+    name = mat.name
+    if node is not None and node.bl_idname == "ShaderNodeBsdfDiffuse":
+        color = _socket_value(node, "Color", report, name)
+        if (node.inputs["Roughness"].default_value or 0) > 0:
+            report.warn(f"material \"{name}\": Diffuse BSDF roughness ignored (Lambert)")
+        return {"model": "lambert", "albedo": _clamp_to(catalog.model_params("lambert"), "albedo", color)}
+    if node is not None and node.bl_idname == "ShaderNodeBsdfPrincipled":
+        if not principled:
+            report.warn(f"material \"{name}\": this lacquer library has no `principled` model; rendered as "
+                        f"Lambert with its Base Color")
+            color = _socket_value(node, "Base Color", report, name)
+            return {"model": "lambert", "albedo": _clamp_to(catalog.model_params("lambert"), "albedo", color)}
+        out = {"model": "principled"}
+        for sock, param in PRINCIPLED_SOCKETS:
+            if param in principled:
+                v = _socket_value(node, sock, report, name)
+                if v is not None:
+                    out[param] = _clamp_to(principled, param, v)
+        for sock, neutral in PRINCIPLED_IGNORED:
+            s = node.inputs.get(sock)
+            if s is not None and (s.is_linked or abs(float(s.default_value) - neutral) > 1e-6):
+                report.warn(f"material \"{name}\": Principled {sock} is not supported by LACQUER (ignored)")
+        report.warn(f"material \"{name}\" is not a Lacquer paint: approximated by the `principled` model from "
+                    f"its Principled BSDF inputs")
+        return out
+    # Anything else: the diffuse colour Blender shows in solid mode.
+    color = [float(c) for c in mat.diffuse_color[:3]]
+    kind = node.bl_idname if node is not None else "no surface shader"
+    report.warn(f"material \"{name}\" ({kind}) has no Principled BSDF at its output: rendered as a diffuse "
+                f"surface of its viewport colour")
+    if principled:
+        return {"model": "principled", "base_color": color}
+    return {"model": "lambert", "albedo": color}
+
+
+# --- lights ----------------------------------------------------------------------------------
+
+
+def light_desc(light, matrix, report: Report) -> list:
+    """Renderer lights for a Blender light at `matrix` (world)."""
+    color = _vec(light.color)
+    power = float(light.energy)
+    pos = matrix.to_translation()
+    down = (matrix.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()  # lights shine along their −Z
+    if light.type == "SUN":
+        return [{"type": "sun", "direction": _dir(-down), "irradiance": [power * c for c in color],
+                 "angle_deg": math.degrees(float(light.angle))}]
+    if light.type in {"POINT", "SPOT"}:
+        radius = float(getattr(light, "shadow_soft_size", 0.0))
+        intensity = [power / (4.0 * math.pi) * c for c in color]
+        if light.type == "POINT":
+            if radius > 0:
+                radiance = [i / (math.pi * radius * radius) for i in intensity]
+                return [{"type": "sphere", "center": _point(pos), "radius": radius, "radiance": radiance,
+                         "surface": False}]
+            return [{"type": "point", "position": _point(pos), "intensity": intensity}]
+        if radius > 0:
+            report.warn(f"light \"{light.name}\": spot radius {radius:g} m rendered as a point (sharp shadows)")
+        # Cycles: smoothstep over cos θ from cos(half) to cos(half) + (1 − cos(half))·blend.
+        half = 0.5 * float(light.spot_size)
+        cos_outer = math.cos(half)
+        inner = math.acos(min(1.0, cos_outer + (1.0 - cos_outer) * float(light.spot_blend)))
+        return [{"type": "spot", "position": _point(pos), "target": _point(pos + down), "intensity": intensity,
+                 "cone_deg": math.degrees(half), "blend_deg": math.degrees(half - inner)}]
+    if light.type == "AREA":
+        sx = float(light.size)
+        sy = float(light.size_y) if light.shape in {"RECTANGLE", "ELLIPSE"} else sx
+        ellipse = light.shape in {"DISK", "ELLIPSE"}  # the ellipse inscribed in sx × sy
+        if float(getattr(light, "spread", math.pi)) < math.pi - 1e-4:
+            report.warn(f"light \"{light.name}\": area light spread ignored (180°)")
+        m3 = matrix.to_3x3()
+        ex, ey = m3 @ Vector((1.0, 0.0, 0.0)), m3 @ Vector((0.0, 1.0, 0.0))
+        area = (ex * sx).cross(ey * sy).length * (math.pi / 4.0 if ellipse else 1.0)
+        if area <= 0:
+            return []
+        radiance = [power / (math.pi * area) * c for c in color]
+        corner = pos - ex * (sx / 2) - ey * (sy / 2)
+        # Front side = edge_u × edge_v must face the light's −Z: edge_u = y, edge_v = x.
+        return [{"type": "rectangle", "corner": _point(corner), "edge_u": _dir(ey * sy), "edge_v": _dir(ex * sx),
+                 "radiance": radiance, "ellipse": ellipse, "surface": False}]
+    report.warn(f"light \"{light.name}\": type {light.type} not supported (left out)")
+    return []
+
+
+# --- world -----------------------------------------------------------------------------------
+
+
+def _write_hdr(path: str, rgb: np.ndarray):
+    """Radiance RGBE (flat scanlines), rows top first."""
+    h, w, _ = rgb.shape
+    rgb = np.maximum(np.nan_to_num(rgb.astype(np.float64), nan=0.0, posinf=0.0), 0.0)
+    m = rgb.max(axis=2)
+    e = np.zeros(m.shape, np.int32)
+    mant, exp = np.frexp(m)
+    ok = m > 1e-32
+    e[ok] = exp[ok]
+    scale = np.where(ok, mant * 256.0 / np.where(m > 0, m, 1.0), 0.0)
+    out = np.zeros((h, w, 4), np.uint8)
+    out[..., :3] = np.clip(rgb * scale[..., None], 0, 255).astype(np.uint8)
+    out[..., 3] = np.where(ok, e + 128, 0).astype(np.uint8)
+    with open(path, "wb") as f:
+        f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {h} +X {w}\n".encode())
+        f.write(out.tobytes())
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _environment_file(image, report: Report) -> str | None:
+    """A lat-long file the renderer can read for a Blender image: the image's own .hdr/.exr, or
+    its pixels written to a temporary .hdr."""
+    path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
+    if path and not image.packed_file and os.path.splitext(path)[1].lower() in {".hdr", ".exr"} \
+            and os.path.isfile(path) and not image.is_dirty:
+        return os.path.abspath(path)
+    w, h = image.size
+    if w == 0 or h == 0:
+        report.warn(f"world image \"{image.name}\" has no pixels (left out)")
+        return None
+    px = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(h, w, image.channels)[::-1, :, :3]  # Blender rows are bottom first
+    if not image.is_float and image.colorspace_settings.name in {"sRGB", "sRGB EOTF"}:
+        px = _srgb_to_linear(px)
+    fd, tmp = tempfile.mkstemp(prefix="lacquer-env-", suffix=".hdr")
+    os.close(fd)
+    _write_hdr(tmp, px)
+    return tmp
+
+
+def world_desc(world, report: Report, temp_files: list) -> list:
+    """The environment light for the world (constant colour or an equirectangular image)."""
+    if world is None:
+        return []
+    if not world.use_nodes or world.node_tree is None:
+        return [{"type": "environment", "radiance": _vec(world.color)}]
+    out = next((n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output),
+               None)
+    if out is None or not out.inputs["Surface"].is_linked:
+        return []
+    bg = out.inputs["Surface"].links[0].from_node
+    if bg.bl_idname != "ShaderNodeBackground":
+        report.warn(f"world \"{world.name}\": {bg.bl_idname} at the output is not supported (no environment)")
+        return []
+    strength = float(bg.inputs["Strength"].default_value)
+    if bg.inputs["Strength"].is_linked:
+        report.warn(f"world \"{world.name}\": Strength is connected to nodes; its unconnected value is used")
+    color_in = bg.inputs["Color"]
+    if not color_in.is_linked:
+        return [{"type": "environment", "radiance": [strength * c for c in _vec(color_in.default_value)[:3]]}]
+    src = color_in.links[0].from_node
+    if src.bl_idname == "ShaderNodeTexEnvironment" and src.image is not None:
+        if src.projection != "EQUIRECTANGULAR":
+            report.warn(f"world \"{world.name}\": {src.projection} projection not supported (equirectangular used)")
+        rotation = 0.0
+        vec_in = src.inputs["Vector"]
+        if vec_in.is_linked:
+            mapping = vec_in.links[0].from_node
+            if mapping.bl_idname == "ShaderNodeMapping":
+                rot = mapping.inputs["Rotation"].default_value
+                if abs(rot[0]) > 1e-6 or abs(rot[1]) > 1e-6:
+                    report.warn(f"world \"{world.name}\": mapping rotation about X/Y ignored (Z kept)")
+                rotation = math.degrees(rot[2])
+            else:
+                report.warn(f"world \"{world.name}\": environment vector from {mapping.bl_idname} ignored")
+        path = _environment_file(src.image, report)
+        if path is None:
+            return []
+        if path.startswith(tempfile.gettempdir()) and os.path.basename(path).startswith("lacquer-env-"):
+            temp_files.append(path)
+        # Blender's lat-long u = 1/2 − atan2(y, x)/2π; the renderer's u = 1/2 + atan2(x, −z)/2π
+        # in its y-up frame: a quarter turn apart, plus the mapping's Z rotation.
+        return [{"type": "environment", "map": path, "scale": strength,
+                 "rotation_deg": ENV_ROTATION_OFFSET_DEG + rotation}]
+    report.warn(f"world \"{world.name}\": {src.bl_idname} into the Background is not supported; using the "
+                f"Background's colour value")
+    return [{"type": "environment", "radiance": [strength * c for c in _vec(color_in.default_value)[:3]]}]
+
+
+#: Rotation (degrees about up) that aligns the renderer's lat-long convention with Blender's
+#: (measured: background pixels in six directions, with and without a Mapping rotation, agree).
+ENV_ROTATION_OFFSET_DEG = 90.0
+
+
+# --- camera ----------------------------------------------------------------------------------
+
+
+def camera_desc(cam_obj, width: int, height: int, report: Report) -> dict:
+    cam = cam_obj.data
+    m = cam_obj.matrix_world
+    if cam.type != "PERSP":
+        report.warn(f"camera \"{cam_obj.name}\": {cam.type} projection not supported (perspective used)")
+    if abs(cam.shift_x) > 1e-6 or abs(cam.shift_y) > 1e-6:
+        report.warn(f"camera \"{cam_obj.name}\": lens shift ignored")
+    if cam.dof.use_dof:
+        report.warn(f"camera \"{cam_obj.name}\": depth of field ignored (pinhole)")
+    # Sensor fit: the sensor size applies to the larger image side (AUTO) or the chosen one.
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if width >= height else "VERTICAL"
+    sensor = cam.sensor_height if (fit == "VERTICAL" and cam.sensor_fit == "VERTICAL") else cam.sensor_width
+    half = math.atan(0.5 * sensor / cam.lens)
+    if fit == "HORIZONTAL":
+        vhalf = math.atan(math.tan(half) * height / width)
+    else:
+        vhalf = half
+    pos = m.to_translation()
+    fwd = (m.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()
+    up = (m.to_3x3() @ Vector((0.0, 1.0, 0.0))).normalized()
+    return {"position": _point(pos), "look_at": _point(pos + fwd), "up": _dir(up), "fov_deg": math.degrees(2 * vhalf)}
+
+
+# --- the whole scene ---------------------------------------------------------------------------
+
+
+def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: list) -> dict:
+    """The scene of an evaluated depsgraph as the renderer's JSON scene."""
+    scene = depsgraph.scene
+    cam_obj = scene.camera
+    if cam_obj is None:
+        raise ValueError("the scene has no camera")
+    cam_obj = cam_obj.evaluated_get(depsgraph)
+    meshes: dict = {}
+    objects: list = []
+    lights: list = []
+    mesh_cache: dict = {}
+    for inst in depsgraph.object_instances:
+        ob = inst.instance_object if inst.is_instance else inst.object
+        matrix = inst.matrix_world.copy()
+        if ob.type == "LIGHT":
+            lights.extend(light_desc(ob.data, matrix, report))
+            continue
+        if ob.type not in GEOMETRY_TYPES:
+            if ob.type in {"VOLUME", "POINTCLOUD", "GPENCIL", "GREASEPENCIL"}:
+                report.warn(f"object \"{ob.name}\": {ob.type.lower()} objects are not rendered by LACQUER")
+            continue
+        axis_scale = tuple(round(float(x), 6) for x in matrix.to_scale())
+        key = (ob.name, ob.data.name if ob.data else "", ob.type, axis_scale)
+        if ob.type == "MESH" and ob.data is not None:
+            # Instances and linked duplicates share the evaluated mesh: export it once per
+            # (mesh, materials, scale) and instance it by matrix.
+            slots = tuple(s.material.name if s.material else "" for s in ob.material_slots)
+            key = ("data", ob.data.as_pointer(), slots, axis_scale)
+        entry = mesh_cache.get(key)
+        if entry is None:
+            mesh = None
+            try:
+                mesh = ob.to_mesh() if ob.type != "MESH" else ob.data
+                arrays = _mesh_arrays(mesh, axis_scale) if mesh is not None else {}
+            except RuntimeError as e:  # e.g. hair curves, which have no mesh
+                report.warn(f"object \"{ob.name}\": no triangles to render ({e})")
+                arrays = {}
+            finally:
+                if ob.type != "MESH" and mesh is not None:
+                    ob.to_mesh_clear()
+            slots = [s.material for s in ob.material_slots]
+            parts = []
+            if arrays:
+                mi = arrays["material_index"]
+                for idx in np.unique(mi):
+                    sel = np.nonzero(mi == idx)[0]
+                    corner = (sel[:, None] * 3 + np.arange(3)).reshape(-1)
+                    name = f"m{len(meshes)}"
+                    meshes[name] = {
+                        "positions": _b64(arrays["positions"][corner], np.float32),
+                        "triangles": _b64(np.arange(len(corner), dtype=np.uint32).reshape(-1, 3), np.uint32),
+                        "normals": _b64(arrays["normals"][corner], np.float32),
+                        "uvs": _b64(arrays["uvs"][corner], np.float32),
+                    }
+                    mat = slots[idx] if 0 <= idx < len(slots) else None
+                    parts.append((name, mat))
+            entry = mesh_cache[key] = parts
+        world = Y_UP @ matrix
+        for name, mat in entry:
+            desc = material_desc(mat, report)
+            if desc.get("model") == "coated_paint":
+                desc = dict(desc, surface_scale_mm=1000.0)  # uv in metres (see _mesh_arrays)
+            objects.append({"type": "mesh", "mesh": name, "material": desc,
+                            "transform": {"matrix": [_vec(row) for row in world]}})
+    lights.extend(world_desc(scene.world, report, temp_files))
+    if scene.render.use_border:
+        report.warn("render region (border) ignored: the whole frame is rendered")
+    if scene.render.use_motion_blur:
+        report.warn("motion blur ignored")
+    if not objects:
+        report.warn("the scene has no visible geometry")
+    return {"camera": camera_desc(cam_obj, width, height, report), "meshes": meshes, "objects": objects,
+            "lights": lights}
+
+
+def render_size(scene) -> tuple[int, int]:
+    r = scene.render
+    return max(1, int(r.resolution_x * r.resolution_percentage / 100)), \
+        max(1, int(r.resolution_y * r.resolution_percentage / 100))
+
+
+def job(depsgraph, report: Report, temp_files: list, preview: bool = False) -> dict:
+    """The whole render job for the depsgraph's scene."""
+    scene = depsgraph.scene
+    width, height = render_size(scene)
+    s = scene.lacquer
+    return {
+        "scene": scene_desc(depsgraph, width, height, report, temp_files),
+        "width": width,
+        "height": height,
+        "spp": int(s.preview_samples if preview else s.samples),
+        "max_depth": int(s.max_depth),
+        "seed": int(s.seed),
+        "threads": int(scene.render.threads) if scene.render.threads_mode == "FIXED" else 0,
+        "aovs": False,
+        "sparkle": bool(s.sparkle),
+        "clamp": float(s.clamp),
+    }

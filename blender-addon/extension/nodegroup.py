@@ -1,0 +1,344 @@
+"""The `Lacquer Coated Paint` node group (Cycles and EEVEE nodes only) and the materials using it.
+
+Structure (version ``NODE_GROUP_VERSION``; the core's fit, docs/blender-fit.md, models exactly
+this in the mean-lobe limit):
+
+* Three Principled BSDFs share the clearcoat (Coat Weight, Coat Roughness, Coat IOR, Coat Tint,
+  Coat Normal = the surface's shading normal N):
+
+  - **base**: Base Color = Pigment Color, Metallic 0, Specular IOR Level 0 (pigment in binder:
+    no interface of its own), so a Lambert diffuse under the coat;
+  - **flake**: Base Color = Flake Color, Metallic 1, Normal = the flake normal;
+  - **pearl**: Base Color = Pearl Color, Metallic 0, IOR 1.5, Thin Film Thickness / IOR =
+    Pearl Film Thickness / IOR, Normal = the pearl flake normal.
+
+* Mixed as ``Mix(Mix(base, pearl, c_p / (1 − c_f)), flake, c_f)`` (c_f = Flake Coverage,
+  c_p = Pearl Coverage): weights flake ``c_f``, pearl ``c_p``, base ``1 − c_f − c_p``, as the
+  core's fit (docs/blender-fit.md) models the group.
+
+* **Sparkle = 1** (per-cell flakes): the surface is cut into Voronoi cells (3D, F1, randomness 1)
+  of object coordinates × the object's scale, i.e. metres on the object. The cell scale is
+  ``0.937 / Flake Size`` (per metre): a plane through such a Voronoi diagram has cells of mean
+  area ``0.69 / scale²`` = one flake's area ``π (Flake Size)² / 4`` (measured by Monte Carlo on
+  Blender's jittered-grid Voronoi). Each cell's three random values (the Voronoi Color r, g, b)
+  sample its flake normal m from GGX(α = Flake Spread) around N (``tan²θ = α² g / (1 − g)``,
+  ``φ = 2π b``) and decide whether it holds a flake: ``r < c_f · G1(I) (I·m) / ((I·N)(N·m))``,
+  the visible-normal weighting of a tilted flake (I toward the viewer, G1 Smith GGX masking),
+  so that the flake weight, 1 or 0 per cell, averages to the mean flake lobe's. The flake's own
+  roughness is Flake Roughness. Pearl flakes use an independent Voronoi (shifted coordinates,
+  Pearl Size, probability from ``c_p / (1 − c_f)``, Pearl Spread).
+
+* **Sparkle = 0** (the mean lobe): every point gets ``f_flake = Flake Coverage`` with Normal = N
+  and Principled roughness ``(Flake Spread² + Flake Roughness⁴)^¼`` (GGX α of the flake-normal
+  distribution combined with the flakes' own α = roughness²), and likewise for pearls.
+  Values between 0 and 1 interpolate the weights, roughness and normal (use 0 or 1).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import bpy
+
+from . import fit as fitmod
+from . import props
+
+GROUP_NAME = "Lacquer Coated Paint"
+NODE_NAME = "Lacquer Paint"
+NODE_GROUP_VERSION = 3
+
+#: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
+#: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
+CELL_SCALE_FACTOR = 0.937
+
+#: Group inputs: (name, socket type, default, min, max, description). The first sixteen are the
+#: contract with the core's fit (docs/blender.md); "Pearl Size" is set from the paint directly.
+INPUTS = (
+    ("Pigment Color", "NodeSocketColor", (0.5, 0.03, 0.03), None, None,
+     "Diffuse colour of the basecoat as seen through Principled's coat"),
+    ("Flake Color", "NodeSocketColor", (0.91, 0.92, 0.92), None, None, "Base Color of the metallic flakes"),
+    ("Flake Coverage", "NodeSocketFloat", 0.03, 0.0, 1.0, "Area fraction of metallic flakes"),
+    ("Flake Roughness", "NodeSocketFloat", 0.05, 0.0, 1.0, "Principled roughness of one flake's surface"),
+    ("Flake Spread", "NodeSocketFloat", 0.21, 0.0, 1.0, "GGX α of the distribution of flake normals"),
+    ("Flake Size", "NodeSocketFloat", 20.0, 0.1, 10000.0, "Flake diameter in µm (world units: 1 unit = 1 m)"),
+    ("Pearl Coverage", "NodeSocketFloat", 0.0, 0.0, 1.0, "Area fraction of pearlescent flakes"),
+    ("Pearl Color", "NodeSocketColor", (0.8, 0.8, 0.8), None, None, "Base Color of the pearl flakes"),
+    ("Pearl Film Thickness", "NodeSocketFloat", 120.0, 0.0, 100000.0, "Thin film thickness on pearls (nm)"),
+    ("Pearl Film IOR", "NodeSocketFloat", 2.6, 1.0, 3.0, "Thin film IOR on pearls"),
+    ("Pearl Spread", "NodeSocketFloat", 0.21, 0.0, 1.0, "GGX α of the distribution of pearl normals"),
+    ("Coat Weight", "NodeSocketFloat", 1.0, 0.0, 1.0, "Principled Coat Weight"),
+    ("Coat Roughness", "NodeSocketFloat", 0.14, 0.0, 1.0, "Principled Coat Roughness"),
+    ("Coat IOR", "NodeSocketFloat", 1.5, 1.0, 4.0, "Principled Coat IOR"),
+    ("Coat Tint", "NodeSocketColor", (1.0, 1.0, 1.0), None, None, "Principled Coat Tint"),
+    ("Sparkle", "NodeSocketFloat", 1.0, 0.0, 1.0, "1 = individual flakes at their true size, 0 = the mean lobe"),
+    ("Pearl Size", "NodeSocketFloat", 15.0, 0.1, 10000.0, "Pearl flake diameter in µm"),
+)
+
+
+class _Builder:
+    """Small helpers to wire math nodes: arguments are sockets or numbers."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.nodes = tree.nodes
+        self.links = tree.links
+        self.column = 0
+
+    def node(self, kind, x, y, **attrs):
+        n = self.nodes.new(kind)
+        n.location = (x, y)
+        for k, v in attrs.items():
+            setattr(n, k, v)
+        return n
+
+    def feed(self, socket, value):
+        if isinstance(value, bpy.types.NodeSocket):
+            self.links.new(value, socket)
+        elif isinstance(value, (tuple, list)) and len(socket.default_value) == 4 and len(value) == 3:
+            socket.default_value = (*value, 1.0)
+        else:
+            socket.default_value = value
+
+    def math(self, op, a, b=None, x=0, y=0, clamp=False):
+        n = self.node("ShaderNodeMath", x, y, operation=op, use_clamp=clamp)
+        self.feed(n.inputs[0], a)
+        if b is not None:
+            self.feed(n.inputs[1], b)
+        n.hide = True
+        return n.outputs[0]
+
+    def vmath(self, op, a, b=None, scale=None, x=0, y=0):
+        n = self.node("ShaderNodeVectorMath", x, y, operation=op)
+        self.feed(n.inputs[0], a)
+        if b is not None:
+            self.feed(n.inputs[1], b)
+        if scale is not None:
+            self.feed(n.inputs["Scale"], scale)
+        n.hide = True
+        return n.outputs["Value"] if op in {"DOT_PRODUCT", "LENGTH", "DISTANCE"} else n.outputs["Vector"]
+
+    def mix(self, data_type, fac, a, b, x=0, y=0):
+        n = self.node("ShaderNodeMix", x, y, data_type=data_type)
+        if data_type == "VECTOR":
+            n.factor_mode = "UNIFORM"
+        ins = [s for s in n.inputs if s.enabled]
+        self.feed(ins[0], fac)
+        self.feed(ins[1], a)
+        self.feed(ins[2], b)
+        n.hide = True
+        return next(s for s in n.outputs if s.enabled)
+
+
+def _new_interface(group):
+    for name, stype, default, lo, hi, desc in INPUTS:
+        s = group.interface.new_socket(name=name, in_out="INPUT", socket_type=stype)
+        s.description = desc
+        if stype == "NodeSocketColor":
+            s.default_value = (*default, 1.0)
+        else:
+            s.default_value = default
+            s.min_value, s.max_value = lo, hi
+    group.interface.new_socket(name="BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+
+
+def _build(group):
+    b = _Builder(group)
+    gi = b.node("NodeGroupInput", -1800, 0)
+    go = b.node("NodeGroupOutput", 1400, 0)
+    I = gi.outputs  # noqa: E741  (group inputs by name)
+
+    geo = b.node("ShaderNodeNewGeometry", -1800, 600)
+    N = geo.outputs["Normal"]
+    incoming = geo.outputs["Incoming"]
+    texco = b.node("ShaderNodeTexCoord", -1800, 900)
+    scale_attr = b.node("ShaderNodeAttribute", -1800, 1100, attribute_type="OBJECT", attribute_name="scale")
+    # Object coordinates in metres on the object (× its scale), so flakes stick to the object.
+    P = b.vmath("MULTIPLY", texco.outputs["Object"], scale_attr.outputs["Vector"], x=-1600, y=1000)
+
+    # A tangent frame around N (the helper axis switches near the poles).
+    nz = b.node("ShaderNodeSeparateXYZ", -1600, 700)
+    b.feed(nz.inputs[0], N)
+    polar = b.math("GREATER_THAN", b.math("ABSOLUTE", nz.outputs["Z"], x=-1450, y=700), 0.99, x=-1300, y=700)
+    helper = b.mix("VECTOR", polar, (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), x=-1150, y=700)
+    T = b.vmath("NORMALIZE", b.vmath("CROSS_PRODUCT", N, helper, x=-1000, y=700), x=-850, y=700)
+    Bt = b.vmath("CROSS_PRODUCT", N, T, x=-700, y=700)
+    sparkle = I["Sparkle"]
+
+    def layer(size, coverage, spread, offset, y0):
+        """Voronoi flake cells → (weight, shading normal, roughness) of one flake population."""
+        cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, size, x=-1400, y=y0 + 150)
+        coords = b.vmath("ADD", P, offset, x=-1400, y=y0 + 100) if offset else P
+        vor = b.node("ShaderNodeTexVoronoi", -1250, y0, voronoi_dimensions="3D", feature="F1")
+        b.feed(vor.inputs["Vector"], coords)
+        b.feed(vor.inputs["Scale"], cell_scale)
+        b.feed(vor.inputs["Randomness"], 1.0)
+        rnd = b.node("ShaderNodeSeparateColor", -1050, y0)
+        b.feed(rnd.inputs[0], vor.outputs["Color"])
+        r, g, bl = rnd.outputs[0], rnd.outputs[1], rnd.outputs[2]
+        # Flake normal ~ GGX(α): tan²θ = α² g / (1 − g), φ = 2π b.
+        a2 = b.math("MULTIPLY", spread, spread, x=-850, y=y0 - 50)
+        odds = b.math("DIVIDE", g, b.math("ADD", b.math("MULTIPLY", g, -1.0, x=-1000, y=y0 - 120), 1.0 + 1e-6,
+                                           x=-900, y=y0 - 120), x=-800, y=y0 - 120)
+        t2 = b.math("MULTIPLY", a2, odds, x=-700, y=y0 - 80)
+        cos_t = b.math("POWER", b.math("ADD", t2, 1.0, x=-600, y=y0 - 80), -0.5, x=-500, y=y0 - 80)
+        sin_t = b.math("MULTIPLY", b.math("SQRT", t2, x=-600, y=y0 - 140), cos_t, x=-500, y=y0 - 140)
+        phi = b.math("MULTIPLY", bl, 2.0 * math.pi, x=-800, y=y0 - 200)
+        lx = b.math("MULTIPLY", sin_t, b.math("COSINE", phi, x=-700, y=y0 - 200), x=-400, y=y0 - 160)
+        ly = b.math("MULTIPLY", sin_t, b.math("SINE", phi, x=-700, y=y0 - 240), x=-400, y=y0 - 200)
+        m = b.vmath("ADD",
+                    b.vmath("ADD", b.vmath("SCALE", T, scale=lx, x=-300, y=y0 - 120),
+                            b.vmath("SCALE", Bt, scale=ly, x=-300, y=y0 - 160), x=-200, y=y0 - 140),
+                    b.vmath("SCALE", N, scale=cos_t, x=-300, y=y0 - 200), x=-100, y=y0 - 160)
+        normal = b.vmath("NORMALIZE", b.mix("VECTOR", sparkle, N, m, x=0, y=y0 - 160), x=100, y=y0 - 160)
+        # Weight: 1 in a flake cell, 0 elsewhere (Sparkle 1); the coverage everywhere (Sparkle 0).
+        # Cells draw normals m from D(m) cos θm, but the viewer sees the normals' visible
+        # distribution G1(I) (I·m) D(m) / (I·N): a flake tilted to m shows its projected area
+        # (I·m)/(N·m) per unit of surface (a Principled closure with Normal = m shades the cell as
+        # if it covered the cell's own projected area I·N), and Smith masking G1(I) (GGX, α =
+        # spread) hides some. So a cell is a flake with probability coverage × G1(I) (I·m) /
+        # ((I·N)(N·m)); the mean over cells is then the mean flake lobe but for the shadowing
+        # toward the light.
+        i_m = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", incoming, m, x=-200, y=y0 + 200), 0.0, x=-100, y=y0 + 200)
+        i_n = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", incoming, N, x=-200, y=y0 + 250), 1e-3, x=-100, y=y0 + 250)
+        # Λ = (√(1 + α² tan²θ) − 1)/2, tan²θ = 1/cos²θ − 1; G1 = 1/(1 + Λ).
+        tan2 = b.math("SUBTRACT", b.math("DIVIDE", 1.0, b.math("MULTIPLY", i_n, i_n, x=-100, y=y0 + 300),
+                                         x=0, y=y0 + 300), 1.0, x=100, y=y0 + 300)
+        lam = b.math("MULTIPLY", b.math("SUBTRACT", b.math("SQRT", b.math("ADD", b.math(
+            "MULTIPLY", a2, tan2, x=200, y=y0 + 300), 1.0, x=300, y=y0 + 300), x=400, y=y0 + 300), 1.0,
+            x=500, y=y0 + 300), 0.5, x=600, y=y0 + 300)
+        g1 = b.math("DIVIDE", 1.0, b.math("ADD", lam, 1.0, x=700, y=y0 + 300), x=800, y=y0 + 300)
+        proj = b.math("MULTIPLY", g1, b.math("DIVIDE", i_m, b.math("MULTIPLY", i_n, cos_t, x=0, y=y0 + 250),
+                                             x=100, y=y0 + 220), x=200, y=y0 + 250)
+        present = b.math("LESS_THAN", r, b.math("MULTIPLY", coverage, proj, x=200, y=y0 + 200), x=300, y=y0 + 150)
+        weight = b.mix("FLOAT", sparkle, coverage, present, x=400, y=y0 + 100)
+        # Roughness: the flake's own (Sparkle 1) or the whole distribution's (Sparkle 0).
+        fr = I["Flake Roughness"]
+        fr4 = b.math("POWER", fr, 4.0, x=-850, y=y0 - 300)
+        mean_rough = b.math("POWER", b.math("ADD", a2, fr4, x=-700, y=y0 - 300), 0.25, x=-550, y=y0 - 300)
+        rough = b.mix("FLOAT", sparkle, mean_rough, fr, x=-400, y=y0 - 300)
+        return weight, normal, rough
+
+    flake_w, flake_n, flake_r = layer(I["Flake Size"], I["Flake Coverage"], I["Flake Spread"], None, 300)
+    # Pearls share the area the metal flakes leave: weight c_p / (1 − c_f) under the flake mix,
+    # so that the weights are (1 − c_f − c_p, c_f, c_p) (per cell: that probability).
+    free = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, I["Flake Coverage"], x=-1600, y=-350), 1e-4, x=-1500, y=-350)
+    pearl_cov = b.math("MINIMUM", b.math("DIVIDE", I["Pearl Coverage"], free, x=-1400, y=-350), 1.0, x=-1300, y=-350)
+    pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], pearl_cov, I["Pearl Spread"], (37.11, 53.71, 19.31), -500)
+
+    def principled(x, y, label):
+        p = b.node("ShaderNodeBsdfPrincipled", x, y)
+        p.label = label
+        for name in ("Coat Weight", "Coat Roughness", "Coat IOR", "Coat Tint"):
+            b.feed(p.inputs[name], I[name])
+        b.feed(p.inputs["Coat Normal"], N)
+        return p
+
+    base = principled(500, 900, "Basecoat (pigment)")
+    b.feed(base.inputs["Base Color"], I["Pigment Color"])
+    b.feed(base.inputs["Metallic"], 0.0)
+    b.feed(base.inputs["Specular IOR Level"], 0.0)
+    b.feed(base.inputs["Roughness"], 0.5)
+    b.feed(base.inputs["Normal"], N)
+
+    flake = principled(500, 300, "Metallic flakes")
+    b.feed(flake.inputs["Base Color"], I["Flake Color"])
+    b.feed(flake.inputs["Metallic"], 1.0)
+    b.feed(flake.inputs["Roughness"], flake_r)
+    b.feed(flake.inputs["Normal"], flake_n)
+
+    pearl = principled(500, -400, "Pearlescent flakes")
+    b.feed(pearl.inputs["Base Color"], I["Pearl Color"])
+    b.feed(pearl.inputs["Metallic"], 0.0)
+    b.feed(pearl.inputs["IOR"], 1.5)
+    b.feed(pearl.inputs["Roughness"], pearl_r)
+    b.feed(pearl.inputs["Normal"], pearl_n)
+    b.feed(pearl.inputs["Thin Film Thickness"], I["Pearl Film Thickness"])
+    b.feed(pearl.inputs["Thin Film IOR"], I["Pearl Film IOR"])
+
+    mix1 = b.node("ShaderNodeMixShader", 1000, 300)
+    b.feed(mix1.inputs[0], pearl_w)
+    b.feed(mix1.inputs[1], base.outputs[0])
+    b.feed(mix1.inputs[2], pearl.outputs[0])
+    mix2 = b.node("ShaderNodeMixShader", 1200, 0)
+    b.feed(mix2.inputs[0], flake_w)
+    b.feed(mix2.inputs[1], mix1.outputs[0])
+    b.feed(mix2.inputs[2], flake.outputs[0])
+    b.feed(go.inputs[0], mix2.outputs[0])
+
+
+def ensure_node_group():
+    """The file's `Lacquer Coated Paint` group, built or rebuilt in place if older than this add-on's."""
+    group = bpy.data.node_groups.get(GROUP_NAME)
+    if group is not None and group.bl_idname == "ShaderNodeTree" and group.get("lacquer_version") == NODE_GROUP_VERSION:
+        return group
+    if group is None or group.bl_idname != "ShaderNodeTree":
+        group = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+    else:
+        # Rebuild in place so that every material using it picks up the new version.
+        group.nodes.clear()
+        group.interface.clear()
+    _new_interface(group)
+    _build(group)
+    group["lacquer_version"] = NODE_GROUP_VERSION
+    group.use_fake_user = False
+    return group
+
+
+def _material_output(tree):
+    for n in tree.nodes:
+        if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output:
+            return n
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    return out
+
+
+def group_node(mat, create=True):
+    """The material's `Lacquer Paint` group node (created and linked to the output if asked)."""
+    if hasattr(mat, "use_nodes") and not mat.use_nodes:
+        mat.use_nodes = True
+    tree = mat.node_tree
+    node = tree.nodes.get(NODE_NAME)
+    if node is None or node.bl_idname != "ShaderNodeGroup":
+        if not create:
+            return None
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.name = NODE_NAME
+        node.label = "Lacquer Coated Paint"
+        node.location = (0, 0)
+        node.width = 240
+    group = ensure_node_group()
+    if node.node_tree is not group:
+        node.node_tree = group
+    out = _material_output(tree)
+    if not any(link.from_node == node for link in out.inputs["Surface"].links):
+        tree.links.new(node.outputs[0], out.inputs["Surface"])
+    return node
+
+
+def update_material(mat):
+    """Refits the node group's inputs from the material's paint parameters and writes them."""
+    settings = mat.lacquer
+    material = props.material_json(settings)
+    inputs, error, source = fitmod.fit(material)
+    inputs.setdefault("Flake Size", material["flake_size_um"])
+    inputs.setdefault("Sparkle", 1.0 if material.get("sparkle", True) else 0.0)
+    inputs["Pearl Size"] = material["pearl_size_um"]
+    node = group_node(mat)
+    for name, value in inputs.items():
+        sock = node.inputs.get(name)
+        if sock is None:
+            continue
+        if isinstance(value, (list, tuple)):
+            sock.default_value = (*[float(v) for v in value[:3]], 1.0)
+        else:
+            sock.default_value = float(value)
+    settings.enabled = True
+    settings.fit_inputs = json.dumps(inputs, sort_keys=True)
+    settings.fit_error = json.dumps(error, sort_keys=True)
+    settings.fit_material = json.dumps(material, sort_keys=True)
+    settings.fit_message = source
+    pig = inputs.get("Pigment Color", material["base_color"])
+    mat.diffuse_color = (*[float(v) for v in pig[:3]], 1.0)  # solid-mode viewport colour
+    return inputs, error

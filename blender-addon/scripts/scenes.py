@@ -1,0 +1,562 @@
+"""Test and README scenes for the Lacquer extension, rendered with Cycles and with LACQUER.
+
+Runs in a Python that has bpy (scripts/blender-env.sh makes one); installs the extension zip
+into the user resources folder given by $BLENDER_USER_RESOURCES (set it to a temporary
+folder: it must be set before bpy starts), enables it, builds each scene from factory
+settings, assigns presets with the extension's operator, renders, and writes EXRs and a JSON
+report (timings, fit, engine messages).
+
+    BLENDER_USER_RESOURCES=$(mktemp -d) .venv-blender/bin/python blender-addon/scripts/scenes.py \
+        --zip dist/lacquer-0.1.0.zip --out out/ --size 128 --spp 16 --scenes compare,density
+
+Scenes:
+  compare   gold_flake_8 on a 10 cm sphere, uniform world and a soft area light, film transparent
+  density   a 2 cm plate filling the frame, looked at from above, a sun 20° off the view
+            direction: gold_flake_0, _2, _8 (sparkle grows with density)
+  lights    a Diffuse BSDF plate under each light type in turn (point, point with radius and
+            soft falloff off, spot, sun, area rectangle, world colour, world HDRI): the engine's
+            light, world and camera conversions, with an exact material on both sides
+  instances collection instances (rotated, non-uniformly scaled), a two-material cube with a
+            bevel modifier and its linked duplicate, Diffuse BSDFs: transforms and instancing
+  principled  a sphere with a plain Principled BSDF (coat, metallic, thin film): LACQUER's
+            approximation of non-Lacquer materials by the core's `principled` model
+  readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
+            also writes a side-by-side PNG (Cycles | LACQUER) with --png
+
+With --render-blend FILE (no --zip needed, nothing installed) it only opens FILE and renders
+its scene with Cycles into --out: a farm node without the extension.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import bpy
+
+ADDON = "bl_ext.user_default.lacquer"
+EEVEE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
+
+
+def install(zip_path: str) -> dict:
+    t = time.perf_counter()
+    if ADDON not in bpy.context.preferences.addons:
+        r = bpy.ops.extensions.package_install_files(filepath=os.path.abspath(zip_path), repo="user_default",
+                                                     enable_on_install=True)
+        if r != {"FINISHED"} or ADDON not in bpy.context.preferences.addons:
+            raise SystemExit(f"installing {zip_path} failed: {r}")
+    return {"install_seconds": time.perf_counter() - t}
+
+
+def engine_registered() -> bool:
+    return any(getattr(c, "bl_idname", None) == "LACQUER" and c.is_registered
+               for c in bpy.types.RenderEngine.__subclasses__())
+
+
+def uninstall() -> dict:
+    # bpy 4.5 may hang at exit while the extension's classes are registered.
+    if ADDON in bpy.context.preferences.addons:
+        bpy.ops.preferences.addon_disable(module=ADDON)
+    return {"unregistered": {
+        "addon_disabled": ADDON not in bpy.context.preferences.addons,
+        "engine_gone": not engine_registered(),
+        "operators_gone": not hasattr(bpy.types, "LACQUER_OT_assign_paint"),
+        "material_props_gone": not hasattr(bpy.types.Material, "lacquer"),
+    }}
+
+
+def fresh_scene(size: int, spp: int):
+    # Not read_factory_settings: that would also reset the preferences and so the extension.
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights, bpy.data.cameras,
+                 bpy.data.worlds, bpy.data.node_groups, bpy.data.images):
+        for item in list(coll):
+            coll.remove(item)
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = True
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.image_settings.exr_codec = "ZIP"
+    scene.view_settings.view_transform = "Standard"
+    scene.render.threads_mode = "AUTO"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = spp
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.max_bounces = 8
+    c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.caustics_reflective = c.caustics_refractive = True
+    if hasattr(c, "pixel_filter_type"):  # Blender 5.0
+        c.pixel_filter_type = "BOX"
+    else:
+        c.filter_type = "BOX"
+    c.filter_width = 1.0
+    c.seed = 0
+    scene.lacquer.samples = spp
+    scene.lacquer.max_depth = 8
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    return scene
+
+
+def set_world(scene, color, strength=1.0):
+    w = scene.world
+    if hasattr(w, "use_nodes"):
+        w.use_nodes = True
+    bg = next(n for n in w.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+
+
+def add_camera(scene, location, target, lens=50.0):
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    cam.data.lens = lens
+    cam.location = location
+    direction = (target[0] - location[0], target[1] - location[1], target[2] - location[2])
+    from mathutils import Vector
+
+    cam.rotation_euler = Vector(direction).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    return cam
+
+
+def add_light(scene, kind, location, target=None, energy=10.0, **attrs):
+    data = bpy.data.lights.new(kind.title(), kind)
+    data.energy = energy
+    for k, v in attrs.items():
+        setattr(data, k, v)
+    ob = bpy.data.objects.new(kind.title(), data)
+    scene.collection.objects.link(ob)
+    ob.location = location
+    if target is not None:
+        from mathutils import Vector
+
+        ob.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    return ob
+
+
+def assign(ob, preset):
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    ob.select_set(True)
+    bpy.context.view_layer.objects.active = ob
+    r = bpy.ops.lacquer.assign_paint(preset=preset, new_material=True)
+    assert r == {"FINISHED"}, r
+    return ob.active_material
+
+
+def render(scene, engine: str, path: str) -> dict:
+    scene.render.engine = engine
+    scene.render.filepath = path
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return {"engine": engine, "file": path, "seconds": time.perf_counter() - t}
+
+
+def sphere(scene, radius, location=(0.0, 0.0, 0.0)):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=96, ring_count=48, radius=radius, location=location)
+    ob = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    return ob
+
+
+def scene_compare(size, spp):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    ball = sphere(scene, 0.05)
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    add_light(scene, "AREA", (-0.25, -0.3, 0.35), (0.0, 0.0, 0.0), energy=20.0, shape="RECTANGLE", size=0.2,
+              size_y=0.1)
+    mat = assign(ball, "gold_flake_8")
+    return scene, {"gold_flake_8": mat}
+
+
+def scene_density(size, spp, preset):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.02, 0.02, 0.02))
+    bpy.ops.mesh.primitive_plane_add(size=0.04, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    # 2 cm across the frame: 36 mm sensor, lens f, distance d → d = f/36 mm × 2 cm.
+    add_camera(scene, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0), lens=900.0)
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, preset)
+    return scene, {preset: mat}
+
+
+def scene_readme(size, spp):
+    scene = fresh_scene(size, spp)
+    scene.render.film_transparent = False
+    set_world(scene, (0.22, 0.24, 0.27))
+    ball = sphere(scene, 0.05, (0.0, 0.0, 0.05))
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.0, 0.0))
+    floor = bpy.context.object
+    fm = bpy.data.materials.new("Floor")
+    fm.diffuse_color = (0.18, 0.18, 0.18, 1.0)
+    if hasattr(fm, "use_nodes"):
+        fm.use_nodes = True
+    bsdf = fm.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (0.18, 0.18, 0.18, 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    floor.data.materials.append(fm)
+    add_camera(scene, (0.0, -0.45, 0.16), (0.0, 0.0, 0.045), lens=70.0)
+    add_light(scene, "AREA", (-0.3, -0.25, 0.4), (0.0, 0.0, 0.05), energy=4.0, shape="RECTANGLE", size=0.3,
+              size_y=0.15)
+    add_light(scene, "AREA", (0.35, 0.2, 0.25), (0.0, 0.0, 0.05), energy=1.5, shape="SQUARE", size=0.2)
+    mat = assign(ball, "gold_flake_8")
+    return scene, {"gold_flake_8": mat}
+
+
+def diffuse_material(color=(0.8, 0.8, 0.8)):
+    m = bpy.data.materials.new("Diffuse")
+    if hasattr(m, "use_nodes"):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*color, 1.0)
+    o = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(d.outputs[0], o.inputs["Surface"])
+    return m
+
+
+def env_image(path):
+    """A small procedural lat-long HDRI (sky gradient, a bright sun patch), saved as .hdr."""
+    import numpy as np
+
+    w, h = 128, 64
+    img = bpy.data.images.new("lacquer_test_env", w, h, float_buffer=True)
+    v = (np.arange(h) + 0.5) / h  # bottom to top
+    u = (np.arange(w) + 0.5) / w
+    px = np.zeros((h, w, 4), np.float32)
+    px[..., 0] = 0.2 + 0.6 * v[:, None]
+    px[..., 1] = 0.3 + 0.5 * v[:, None]
+    px[..., 2] = 0.5 + 0.4 * v[:, None] * (0.5 + 0.5 * np.cos(2 * np.pi * u[None, :]))
+    px[44:52, 20:30, :3] = 20.0
+    px[..., 3] = 1.0
+    img.pixels.foreach_set(px.reshape(-1))
+    img.filepath_raw = path
+    img.file_format = "HDR"
+    img.save()
+    bpy.data.images.remove(img)
+    return bpy.data.images.load(path)
+
+
+LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "area_disk", "area_ellipse", "world_color",
+               "world_hdri")
+
+
+def scene_lights(size, spp, case, out):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.0, 0.0, 0.0), 0.0)
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plate = bpy.context.object
+    plate.data.materials.append(diffuse_material())
+    # Straight down on the plate; every light stays outside the view (LACQUER's area and sphere
+    # lights are surfaces the camera would see, Cycles' are not).
+    add_camera(scene, (0.0, 0.0, 3.0), (0.0, 0.0, 0.0), lens=50.0)
+    if case == "point":
+        add_light(scene, "POINT", (1.0, 0.2, 1.0), energy=100.0, shadow_soft_size=0.0)
+    elif case == "point_radius":
+        light = add_light(scene, "POINT", (1.0, 0.2, 1.0), energy=100.0, shadow_soft_size=0.15)
+        light.data.use_soft_falloff = False
+    elif case == "spot":
+        add_light(scene, "SPOT", (0.9, 0.0, 1.2), (0.2, 0.1, 0.0), energy=150.0, shadow_soft_size=0.0,
+                  spot_size=math.radians(70.0), spot_blend=0.3)
+    elif case == "sun":
+        add_light(scene, "SUN", (1.0, -0.5, 2.0), (0.0, 0.0, 0.0), energy=2.0, angle=math.radians(2.0))
+    elif case == "area":
+        add_light(scene, "AREA", (1.3, 0.5, 0.8), (0.0, 0.0, 0.0), energy=60.0, shape="RECTANGLE", size=0.6,
+                  size_y=0.3)
+    elif case == "area_disk":
+        add_light(scene, "AREA", (1.3, 0.5, 0.8), (0.0, 0.0, 0.0), energy=60.0, shape="DISK", size=0.5)
+    elif case == "area_ellipse":
+        add_light(scene, "AREA", (-1.2, -0.6, 0.7), (0.0, 0.0, 0.0), energy=60.0, shape="ELLIPSE", size=0.7,
+                  size_y=0.25)
+    elif case == "world_color":
+        set_world(scene, (0.3, 0.5, 0.7), 1.5)
+    elif case == "world_hdri":
+        w = scene.world
+        nt = w.node_tree
+        bg = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBackground")
+        tex = nt.nodes.new("ShaderNodeTexEnvironment")
+        tex.image = env_image(os.path.join(out, "lights_env.hdr"))
+        tex.interpolation = "Closest"
+        nt.links.new(tex.outputs["Color"], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = 1.0
+    else:
+        raise SystemExit(f"unknown light case {case}")
+    return scene, {}
+
+
+def scene_instances(size, spp):
+    """Collection instances with rotations and non-uniform scales, a two-material cube with a
+    modifier and its linked duplicate: transforms, instancing, material slots, evaluated meshes."""
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    add_light(scene, "SUN", (1.0, -0.6, 1.5), (0.0, 0.0, 0.0), energy=2.0, angle=math.radians(1.0))
+    add_camera(scene, (0.0, -9.0, 4.5), (0.0, 0.0, 0.3), lens=35.0)
+    proto = bpy.data.collections.new("Proto")
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
+    ball = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    for c in list(ball.users_collection):
+        c.objects.unlink(ball)
+    proto.objects.link(ball)
+    ball.data.materials.append(diffuse_material((0.7, 0.15, 0.1)))
+    for k, (loc, rot, scale) in enumerate((((-2.5, 0.0, 0.6), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+                                           ((-1.2, 1.5, 0.6), (0.4, 0.2, 0.7), (1.6, 0.7, 1.0)),
+                                           ((-2.8, 2.2, 1.6), (0.0, 0.9, 0.0), (0.5, 0.5, 0.5)))):
+        empty = bpy.data.objects.new(f"Instance{k}", None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = proto
+        empty.location, empty.rotation_euler, empty.scale = loc, rot, scale
+        scene.collection.objects.link(empty)
+    bpy.ops.mesh.primitive_cube_add(size=1.2, location=(1.5, 0.0, 0.8), rotation=(0.3, 0.2, 0.6))
+    cube = bpy.context.object
+    cube.scale = (1.0, 1.5, 0.8)
+    cube.data.materials.append(diffuse_material((0.1, 0.6, 0.2)))
+    cube.data.materials.append(diffuse_material((0.15, 0.25, 0.8)))
+    for poly in cube.data.polygons:
+        poly.material_index = poly.index % 2
+    bevel = cube.modifiers.new("Bevel", "BEVEL")
+    bevel.width = 0.1
+    bevel.segments = 3
+    twin = cube.copy()  # linked duplicate: same mesh data
+    twin.location = (2.8, 2.0, 0.9)
+    twin.rotation_euler = (0.0, 0.0, -0.5)
+    scene.collection.objects.link(twin)
+    bpy.ops.mesh.primitive_plane_add(size=12.0)
+    bpy.context.object.data.materials.append(diffuse_material((0.5, 0.5, 0.5)))
+    return scene, {}
+
+
+def scene_principled(size, spp):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.5, 0.5, 0.5))
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    add_light(scene, "AREA", (-0.25, -0.3, 0.35), (0.0, 0.0, 0.0), energy=20.0, shape="RECTANGLE", size=0.2,
+              size_y=0.1)
+    ball = sphere(scene, 0.05)
+    m = bpy.data.materials.new("Principled red coat")
+    if hasattr(m, "use_nodes"):
+        m.use_nodes = True
+    p = m.node_tree.nodes.get("Principled BSDF")
+    p.inputs["Base Color"].default_value = (0.6, 0.05, 0.04, 1.0)
+    p.inputs["Roughness"].default_value = 0.35
+    p.inputs["Coat Weight"].default_value = 1.0
+    p.inputs["Coat Roughness"].default_value = 0.1
+    ball.data.materials.append(m)
+    return scene, {}
+
+
+class _Layout:
+    """Records what a panel draws (a stand-in for bpy's UILayout, which needs a window)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = False
+
+    def _sub(self, *a, **k):
+        return _Layout(self.log)
+
+    row = column = box = _sub
+
+    def prop(self, data, name, **k):
+        getattr(data, name)  # raises if the property does not exist
+        self.log.append(("prop", name))
+
+    def label(self, text="", **k):
+        self.log.append(("label", text))
+
+    def menu(self, menu, **k):
+        assert hasattr(bpy.types, menu), menu
+        self.log.append(("menu", menu))
+
+    def operator(self, op, **k):
+        self.log.append(("operator", op))
+
+        class _Props:
+            pass
+
+        return _Props()
+
+    def separator(self, **k):
+        pass
+
+
+def ui_smoke(mat) -> dict:
+    """Draws the extension's panels and menu into a recording layout: every property, menu and
+    operator they name exists."""
+    import importlib
+
+    ui = importlib.import_module(ADDON + ".ui")
+    ops = importlib.import_module(ADDON + ".operators")
+
+    class Ctx:
+        material = mat
+        object = bpy.context.object
+        scene = bpy.context.scene
+        engine = "LACQUER"
+
+    log: list = []
+    for cls in (ui.MATERIAL_PT_lacquer, ui.RENDER_PT_lacquer, ops.LACQUER_MT_presets):
+        cls.draw(type("P", (), {"layout": _Layout(log)})(), Ctx)
+    return {"ui_items": len(log), "ui_props": sorted({n for k, n in log if k == "prop"})}
+
+
+def auto_update_smoke(mat) -> dict:
+    """Editing a paint parameter refits the node group (background mode: at once); re-applying
+    the preset restores it."""
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    before = node.inputs["Flake Coverage"].default_value
+    preset = mat.lacquer.preset
+    mat.lacquer.flake_density = 2.0
+    after = node.inputs["Flake Coverage"].default_value
+    modified = mat.lacquer.modified
+    bpy.ops.lacquer.apply_preset(preset=preset, material=mat.name)
+    return {"coverage_before": before, "coverage_after_edit": after, "modified": modified,
+            "coverage_restored": node.inputs["Flake Coverage"].default_value,
+            "modified_after_reapply": mat.lacquer.modified}
+
+
+def material_info(mat) -> dict:
+    s = mat.lacquer
+    return {"preset": s.preset, "fit_source": s.fit_message,
+            "fit_error": json.loads(s.fit_error) if s.fit_error else None,
+            "fit_inputs": json.loads(s.fit_inputs) if s.fit_inputs else None}
+
+
+def side_by_side_png(left: str, right: str, out: str):
+    """Cycles | LACQUER, view transform of the scene (Standard, sRGB), with a 4-px gap."""
+    import numpy as np
+
+    imgs = []
+    for p in (left, right):
+        im = bpy.data.images.load(p)
+        w, h = im.size
+        px = np.empty(w * h * 4, np.float32)
+        im.pixels.foreach_get(px)
+        imgs.append(px.reshape(h, w, 4))
+    h, w, _ = imgs[0].shape
+    gap = 4
+    canvas = np.ones((h, 2 * w + gap, 4), np.float32)
+    canvas[:, :w] = imgs[0]
+    canvas[:, w + gap:] = imgs[1]
+    canvas[..., 3] = 1.0
+    # Scene-linear → sRGB (Standard view), as the PNG of a render would be.
+    rgb = np.clip(canvas[..., :3], 0.0, 1.0)
+    canvas[..., :3] = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    img = bpy.data.images.new("side_by_side", 2 * w + gap, h, alpha=False)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(canvas.reshape(-1))
+    img.filepath_raw = out
+    img.file_format = "PNG"
+    img.save()
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--zip", help="the extension zip (blender-addon/build.sh)")
+    ap.add_argument("--render-blend", help="only render this .blend with Cycles (no extension)")
+    ap.add_argument("--out", required=True, help="output folder")
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--scenes", default="compare,density")
+    ap.add_argument("--engines", default="CYCLES,LACQUER")
+    ap.add_argument("--png", help="readme: the side-by-side PNG to write")
+    ap.add_argument("--blend", action="store_true", help="also save each scene as a .blend")
+    ap.add_argument("--eevee", action="store_true", help="also render the compare scene with EEVEE")
+    a = ap.parse_args(argv)
+    if not os.environ.get("BLENDER_USER_RESOURCES"):
+        raise SystemExit("set BLENDER_USER_RESOURCES to a temporary folder (before bpy starts)")
+    os.makedirs(a.out, exist_ok=True)
+    report = {"bpy": bpy.app.version_string, "size": a.size, "spp": a.spp, "renders": [], "materials": {}}
+    if a.render_blend:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(a.render_blend))
+        name = os.path.splitext(os.path.basename(a.render_blend))[0]
+        report["addon_enabled"] = ADDON in bpy.context.preferences.addons
+        r = render(bpy.context.scene, "CYCLES", os.path.join(os.path.abspath(a.out), f"{name}_farm_cycles.exr"))
+        report["renders"].append(r)
+        with open(os.path.join(a.out, "report_farm.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        return
+    if not a.zip:
+        raise SystemExit("--zip is required")
+    report.update(install(a.zip))
+    report["engine_registered"] = engine_registered()
+    engines = a.engines.split(",")
+    try:
+        jobs = []
+        for name in a.scenes.split(","):
+            if name == "compare":
+                jobs.append(("compare", lambda: scene_compare(a.size, a.spp)))
+            elif name == "density":
+                for p in ("gold_flake_0", "gold_flake_2", "gold_flake_8"):
+                    jobs.append((f"density_{p}", lambda p=p: scene_density(a.size, a.spp, p)))
+            elif name == "lights":
+                for c in LIGHT_CASES:
+                    jobs.append((f"lights_{c}", lambda c=c: scene_lights(a.size, a.spp, c, os.path.abspath(a.out))))
+            elif name == "principled":
+                jobs.append(("principled", lambda: scene_principled(a.size, a.spp)))
+            elif name == "instances":
+                jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
+            elif name == "readme":
+                jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
+            else:
+                raise SystemExit(f"unknown scene {name}")
+        for name, build in jobs:
+            t = time.perf_counter()
+            scene, mats = build()
+            setup = time.perf_counter() - t
+            for k, m in mats.items():
+                report["materials"][k] = material_info(m)
+                if "ui" not in report:
+                    report["ui"] = ui_smoke(m)
+                    report["auto_update"] = auto_update_smoke(m)
+            if a.blend:
+                bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
+            this = [(e, e.lower()) for e in engines]
+            if name == "compare" and "CYCLES" in engines:
+                this.append(("CYCLES", "cycles_mean"))  # Sparkle 0: the mean lobe the core fits
+            if a.eevee and name == "compare":
+                this.append((EEVEE, "eevee"))
+            for engine, tag in this:
+                for m in mats.values():
+                    node = m.node_tree.nodes.get("Lacquer Paint")
+                    if node is not None:
+                        fitted = json.loads(m.lacquer.fit_inputs).get("Sparkle", 1.0)
+                        node.inputs["Sparkle"].default_value = 0.0 if tag.endswith("_mean") else fitted
+                path = os.path.join(os.path.abspath(a.out), f"{name}_{tag}.exr")
+                if engine == EEVEE:  # needs an OpenGL context (software GL headless): optional
+                    try:
+                        r = render(scene, engine, path)
+                    except RuntimeError as e:
+                        report["eevee_error"] = str(e)
+                        print(f"EEVEE could not render: {e}", flush=True)
+                        continue
+                else:
+                    r = render(scene, engine, path)
+                r.update(scene=name, tag=tag, setup_seconds=setup)
+                report["renders"].append(r)
+                print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
+        if a.png and "readme" in a.scenes.split(","):
+            out = os.path.abspath(a.out)
+            side_by_side_png(os.path.join(out, "readme_cycles.exr"), os.path.join(out, "readme_lacquer.exr"), a.png)
+    finally:
+        report.update(uninstall())
+        with open(os.path.join(a.out, "report.json"), "w") as f:
+            json.dump(report, f, indent=1)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,298 @@
+"""The Blender extension, end to end, in headless bpy from PyPI.
+
+This file runs in the tests venv (numpy 2, OpenImageIO 3; scripts/python-env.sh). It starts the
+bpy venv's python (scripts/blender-env.sh: bpy 4.5 LTS, numpy 1.26) on
+blender-addon/scripts/scenes.py, which installs the built extension zip into a temporary
+BLENDER_USER_RESOURCES, enables it, assigns presets with its operator and renders each scene
+with Cycles and with LACQUER into EXRs; the checks below read them with OpenImageIO.
+
+Inputs (blender-addon/test.sh sets them): LACQUER_BLENDER_ZIP (the zip from build.sh) and
+LACQUER_BLENDER_VENV (the bpy venv). LACQUER_BLENDER_SIZE / _SPP override 128 / 32.
+Figures are printed (pytest -s) and written to figures.json in the render folder.
+"""
+
+from __future__ import annotations
+
+import glob
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+HERE = Path(__file__).resolve().parent
+SCENES = HERE.parent / "scripts" / "scenes.py"
+SIZE = int(os.environ.get("LACQUER_BLENDER_SIZE", "128"))
+SPP = int(os.environ.get("LACQUER_BLENDER_SPP", "32"))
+
+#: Cycles (node group, fitted by the core) against LACQUER (the exact model), gold_flake_8 on a
+#: sphere. "mean": the node group with Sparkle 0, the mean lobe the core fits — per region of a 3×3
+#: grid, the largest relative difference of the mean luminance and of any channel (stable: both
+#: images are smooth). "sparkle": Sparkle 1, the per-cell flakes artists render with — their narrow
+#: lobes reflecting a small light make Cycles' region means heavy-tailed at test sample counts
+#: (a region's ratio moves by ±20 % between 32, 64 and 256 spp), so it is checked on the whole
+#: sphere's mean (which moves by 3 %). Measured figures: blender-addon/README.md.
+REGION_TOL = (0.12, 0.30)
+SPHERE_TOL = (0.12, 0.25)
+#: Light and world conversions with an exact material on both sides (Diffuse BSDF = Lambert).
+LIGHTS_TOL = 0.01
+
+FIGURES: dict = {}
+
+
+def _bpy_python() -> str:
+    venv = os.environ.get("LACQUER_BLENDER_VENV")
+    if not venv:
+        pytest.skip("LACQUER_BLENDER_VENV not set (run blender-addon/test.sh)")
+    return str(Path(venv) / "bin" / "python")
+
+
+def _zip() -> str:
+    z = os.environ.get("LACQUER_BLENDER_ZIP")
+    if not z or not os.path.isfile(z):
+        pytest.skip("LACQUER_BLENDER_ZIP not set (run blender-addon/test.sh)")
+    return z
+
+
+def _run(args, resources, timeout=900):
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(resources))
+    p = subprocess.run([_bpy_python(), str(SCENES), *args], env=env, capture_output=True, text=True,
+                       timeout=timeout)
+    if p.returncode != 0:
+        raise AssertionError(f"scenes.py failed ({p.returncode}):\n{p.stdout[-4000:]}\n{p.stderr[-4000:]}")
+    return p.stdout
+
+
+@pytest.fixture(scope="session")
+def renders():
+    out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
+    log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
+                "--scenes", "compare,density,lights,instances,principled", "--blend", "--eevee"],
+               out / "user-resources")
+    report = json.loads((out / "report.json").read_text())
+    yield {"dir": out, "report": report, "log": log}
+    (out / "figures.json").write_text(json.dumps(FIGURES, indent=1))
+    print(f"\nBlender extension figures: {out / 'figures.json'}")
+
+
+def read_exr(path) -> np.ndarray:
+    buf = oiio.ImageBuf(str(path))
+    assert not buf.has_error, buf.geterror()
+    px = buf.get_pixels(oiio.FLOAT)
+    assert px.ndim == 3 and px.shape[2] == 4, px.shape
+    return px
+
+
+def luminance(rgb):
+    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def test_zip_is_a_valid_extension(renders):
+    """The manifest and layout pass Blender's own validator, and the zip installs and enables."""
+    cli = glob.glob(str(Path(_bpy_python()).parent.parent / "lib" / "python3*" / "site-packages" / "bpy" / "*" /
+                        "scripts" / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"))
+    assert cli, "blender_ext.py not found in the bpy package"
+    p = subprocess.run([_bpy_python(), cli[0], "validate", _zip()], capture_output=True, text=True)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert renders["report"]["install_seconds"] < 60
+
+
+def test_unregisters_cleanly(renders):
+    """Disabling removes the engine, operators and properties (and bpy then exits: no hang)."""
+    assert renders["report"]["engine_registered"] is True
+    assert all(renders["report"]["unregistered"].values()), renders["report"]["unregistered"]
+
+
+def _region_means(img, mask, grid=3, min_pixels=40):
+    ys, xs = np.nonzero(mask)
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    out = {}
+    for i in range(grid):
+        for j in range(grid):
+            sl = (slice(y0 + (y1 - y0) * i // grid, y0 + (y1 - y0) * (i + 1) // grid),
+                  slice(x0 + (x1 - x0) * j // grid, x0 + (x1 - x0) * (j + 1) // grid))
+            m = mask[sl]
+            if m.sum() >= min_pixels:
+                out[(i, j)] = img[sl][m][:, :3].mean(axis=0)
+    return out
+
+
+def _compare(renders, variant):
+    d = renders["dir"]
+    cyc = read_exr(d / ("compare_cycles_mean.exr" if variant == "mean" else "compare_cycles.exr"))
+    lq = read_exr(d / "compare_lacquer.exr")
+    mask = (cyc[..., 3] > 0.999) & (lq[..., 3] > 0.999)
+    assert mask.sum() > 0.1 * mask.size
+    rc, rl = _region_means(cyc, mask), _region_means(lq, mask)
+    assert len(rc) >= 7
+    rows = []
+    worst_lum = worst_ch = 0.0
+    for k in rc:
+        c, l_ = rc[k].astype(np.float64), rl[k].astype(np.float64)
+        dl = float(abs(luminance(c) - luminance(l_)) / luminance(l_))
+        dc = float(np.max(np.abs(c - l_) / np.maximum(l_, 1e-3)))
+        worst_lum, worst_ch = max(worst_lum, dl), max(worst_ch, dc)
+        rows.append({"region": list(k), "cycles": [round(float(x), 4) for x in c],
+                     "lacquer": [round(float(x), 4) for x in l_],
+                     "rel_luminance": round(dl, 4), "rel_channel_max": round(dc, 4)})
+    c, l_ = cyc[mask][:, :3].astype(np.float64).mean(axis=0), lq[mask][:, :3].astype(np.float64).mean(axis=0)
+    sphere = {"cycles": [round(float(x), 4) for x in c], "lacquer": [round(float(x), 4) for x in l_],
+              "rel_luminance": round(float(abs(luminance(c) - luminance(l_)) / luminance(l_)), 4),
+              "rel_channel_max": round(float(np.max(np.abs(c - l_) / l_)), 4)}
+    FIGURES[f"compare_{variant}"] = {"regions": rows, "worst_rel_luminance": round(worst_lum, 4),
+                                     "worst_rel_channel": round(worst_ch, 4), "sphere": sphere,
+                                     "fit": renders["report"]["materials"].get("gold_flake_8")}
+    print(f"\nCycles ({variant}) vs LACQUER, gold_flake_8, per region (row, col): "
+          "rel. luminance / worst channel")
+    for r in rows:
+        print(f"  {r['region']}: C {r['cycles']} L {r['lacquer']}  {r['rel_luminance']:.3f} / "
+              f"{r['rel_channel_max']:.3f}")
+    print(f"  whole sphere: C {sphere['cycles']} L {sphere['lacquer']}  {sphere['rel_luminance']:.3f} / "
+          f"{sphere['rel_channel_max']:.3f}")
+    return FIGURES[f"compare_{variant}"]
+
+
+def test_cycles_mean_lobe_and_lacquer_agree_per_region(renders):
+    """gold_flake_8 on a sphere: the fitted node group's mean lobe (Sparkle 0) in Cycles against
+    the exact model in LACQUER, region by region."""
+    f = _compare(renders, "mean")
+    assert f["worst_rel_luminance"] <= REGION_TOL[0], f
+    assert f["worst_rel_channel"] <= REGION_TOL[1], f
+
+
+def test_cycles_sparkle_and_lacquer_agree_on_the_sphere(renders):
+    """gold_flake_8 on a sphere with per-cell flakes (Sparkle 1, as artists render it): the whole
+    sphere's mean colour in Cycles against LACQUER."""
+    f = _compare(renders, "sparkle")
+    assert f["sphere"]["rel_luminance"] <= SPHERE_TOL[0], f
+    assert f["sphere"]["rel_channel_max"] <= SPHERE_TOL[1], f
+
+
+def test_panels_draw_every_parameter(renders):
+    """The Material and Render panels and the preset menu draw (into a recording layout): every
+    paint parameter the core lists is on the panel, and every menu and operator they name exists."""
+    ui = renders["report"]["ui"]
+    for name in ("flake_density", "flake_size_um", "flake_orientation_deg", "coat_ior", "pearl_film_nm",
+                 "base_color", "samples", "max_depth"):
+        assert name in ui["ui_props"], ui
+    assert "surface_scale_mm" not in ui["ui_props"]  # set by the engine, not the artist
+    assert ui["ui_items"] > 40
+
+
+def test_editing_a_parameter_refits_the_node_group(renders):
+    """gold_flake_8 edited to 2 % flakes: the fitted Flake Coverage drops, the preset is marked
+    modified; applying the preset again restores both."""
+    a = renders["report"]["auto_update"]
+    assert a["coverage_after_edit"] < 0.5 * a["coverage_before"], a
+    assert a["modified"] is True and a["modified_after_reapply"] is False, a
+    assert abs(a["coverage_restored"] - a["coverage_before"]) < 1e-6, a
+
+
+def test_eevee_renders_the_node_group(renders):
+    """EEVEE (software GL when headless) renders the same node group close to Cycles."""
+    d = renders["dir"]
+    if "eevee_error" in renders["report"]:
+        pytest.skip(f"EEVEE cannot render here: {renders['report']['eevee_error']}")
+    cyc, ee = read_exr(d / "compare_cycles.exr"), read_exr(d / "compare_eevee.exr")
+    mask = (cyc[..., 3] > 0.999) & (ee[..., 3] > 0.999)
+    mc, me = cyc[mask][:, :3].mean(axis=0), ee[mask][:, :3].mean(axis=0)
+    rel = float(np.max(np.abs(me - mc) / mc))
+    FIGURES["eevee"] = {"cycles": mc.round(4).tolist(), "eevee": me.round(4).tolist(), "rel": round(rel, 4)}
+    assert rel < 0.15, FIGURES["eevee"]
+
+
+def _sparkle_variance(img):
+    """Variance of luminance around its 9×9 local mean (away from the border)."""
+    lum = luminance(img[..., :3].astype(np.float64))
+    r, k = 4, 9
+    c = np.pad(np.cumsum(np.cumsum(np.pad(lum, r, mode="edge"), 0), 1), ((1, 0), (1, 0)))
+    local = (c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]) / (k * k)
+    return float((lum - local)[8:-8, 8:-8].var()), float(lum.mean())
+
+
+def test_more_flakes_more_sparkle(renders):
+    """Flake density 0 → 2 → 8 %: sparkle variance grows in both renderers (and is ~0 without flakes)."""
+    d = renders["dir"]
+    figures = {}
+    for engine in ("cycles", "lacquer"):
+        v = {p: _sparkle_variance(read_exr(d / f"density_gold_flake_{p}_{engine}.exr")) for p in (0, 2, 8)}
+        figures[engine] = {f"{p} %": {"variance": round(v[p][0], 6), "mean_luminance": round(v[p][1], 4)}
+                           for p in v}
+        assert v[0][0] < 0.05 * v[2][0], (engine, v)
+        assert v[8][0] > 2.0 * v[2][0], (engine, v)
+        assert v[8][1] > v[2][1] > v[0][1], (engine, v)  # flakes add light where they face the sun
+    FIGURES["density"] = figures
+    print("\nSparkle variance (luminance around its 9×9 mean) for 0 / 2 / 8 % flakes:")
+    for engine, f in figures.items():
+        print(f"  {engine}: " + ", ".join(f"{k}: {x['variance']:.4g} (mean {x['mean_luminance']:.3f})"
+                                          for k, x in f.items()))
+
+
+LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "area_disk", "area_ellipse", "world_color",
+               "world_hdri")
+
+
+@pytest.mark.parametrize("case", LIGHT_CASES)
+def test_lights_and_world_match_cycles(renders, case):
+    """A Diffuse BSDF plate (exact on both sides) under each light type: image means agree."""
+    d = renders["dir"]
+    cyc, lq = read_exr(d / f"lights_{case}_cycles.exr"), read_exr(d / f"lights_{case}_lacquer.exr")
+    mc, ml = cyc[..., :3].mean(axis=(0, 1)), lq[..., :3].mean(axis=(0, 1))
+    rel = float(np.max(np.abs(ml - mc) / np.maximum(mc, 1e-4)))
+    FIGURES.setdefault("lights", {})[case] = {"cycles": mc.round(5).tolist(), "lacquer": ml.round(5).tolist(),
+                                              "rel": round(rel, 5)}
+    assert mc.min() > 1e-3, mc
+    assert rel <= LIGHTS_TOL, (case, mc, ml)
+
+
+def test_instances_transforms_and_material_slots(renders):
+    """Collection instances (rotated, non-uniform scale), a two-material beveled cube and its
+    linked duplicate: the same pixels are covered and the image means agree."""
+    d = renders["dir"]
+    cyc, lq = read_exr(d / "instances_cycles.exr"), read_exr(d / "instances_lacquer.exr")
+    a, b = cyc[..., 3] > 0.5, lq[..., 3] > 0.5
+    iou = float((a & b).sum() / (a | b).sum())
+    mc, ml = cyc[..., :3].mean(axis=(0, 1)), lq[..., :3].mean(axis=(0, 1))
+    rel = float(np.max(np.abs(ml - mc) / mc))
+    FIGURES["instances"] = {"coverage_iou": round(iou, 5), "cycles": mc.round(5).tolist(),
+                            "lacquer": ml.round(5).tolist(), "rel": round(rel, 5)}
+    assert iou > 0.995, FIGURES["instances"]
+    assert rel < LIGHTS_TOL, FIGURES["instances"]
+
+
+def test_principled_materials_are_approximated_with_a_message(renders):
+    """A plain Principled BSDF material renders in LACQUER through the `principled` model (or
+    Lambert when the library lacks it), and the engine says so."""
+    log = renders["log"]
+    assert 'material "Principled red coat"' in log
+    d = renders["dir"]
+    cyc, lq = read_exr(d / "principled_cycles.exr"), read_exr(d / "principled_lacquer.exr")
+    mask = (cyc[..., 3] > 0.999) & (lq[..., 3] > 0.999)
+    mc, ml = cyc[mask][:, :3].mean(axis=0), lq[mask][:, :3].mean(axis=0)
+    rel = float(abs(luminance(mc) - luminance(ml)) / luminance(mc))
+    FIGURES["principled"] = {"cycles": mc.round(4).tolist(), "lacquer": ml.round(4).tolist(), "rel_luminance": rel,
+                             "approximated_by": "principled" if "`principled` model from" in log else "lambert"}
+    if "`principled` model from" in log:
+        assert rel < 0.05, FIGURES["principled"]
+
+
+def test_farm_renders_the_blend_without_the_extension(renders):
+    """The saved .blend renders in a bpy with nothing installed (a farm node), identically."""
+    d = renders["dir"]
+    farm = d / "farm"
+    _run(["--render-blend", str(d / "compare.blend"), "--out", str(farm)], farm / "empty-user-resources")
+    rep = json.loads((farm / "report_farm.json").read_text())
+    assert rep["addon_enabled"] is False
+    a, b = read_exr(farm / "compare_farm_cycles.exr"), read_exr(d / "compare_cycles.exr")
+    diff = float(np.abs(a - b).mean() / max(b[..., :3].mean(), 1e-6))
+    FIGURES["farm_rel_mean_abs_diff"] = diff
+    assert diff < 1e-3, diff
+
+
+if __name__ == "__main__":
+    sys.exit(pytest.main([__file__, "-q", "-s"]))
