@@ -360,7 +360,8 @@ fn print_model_report(r: &ModelReport) {
 
 fn print_preset_report(p: &check::PresetReport) {
     let r = &p.report;
-    let min_p = r.chi2.iter().map(|c| c.p_value).fold(1.0, f64::min);
+    let deciding = if r.chi2_retest.is_empty() { &r.chi2 } else { &r.chi2_retest };
+    let min_p = deciding.iter().map(|c| c.p_value).fold(1.0, f64::min);
     println!(
         "preset {:<28} {}  reciprocity {:9.2e}  furnace [{:.4}, {:.4}]  χ² min p {:.3}  hard-case failures {}  f32 err {:.1e}",
         p.preset,

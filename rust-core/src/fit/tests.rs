@@ -142,3 +142,27 @@ fn fit_models_parse_and_reject_clearly() {
     assert!((v.value(v.internal(0.37)) - 0.37).abs() < 1e-14);
     assert!(fittable_models().iter().all(|m| m.name != "measured"));
 }
+
+#[test]
+fn models_left_out_of_isotropic_fits_are_anisotropic() {
+    // Rotating both directions about the normal changes their value at the defaults (and no
+    // parameter makes them isotropic: the cylinders and grating always have an axis).
+    for name in super::NO_ISOTROPIC_CONFIGURATION {
+        let m = Material::from_json(&format!(r#"{{"model": "{name}"}}"#)).unwrap();
+        let rot = |v: crate::Vec3<f64>, a: f64| {
+            crate::Vec3::new(v.x * a.cos() - v.y * a.sin(), v.x * a.sin() + v.y * a.cos(), v.z)
+        };
+        let mut rng = crate::rng::Pcg32::new(7, 7);
+        let mut gap = 0.0f64;
+        for _ in 0..64 {
+            let wi = crate::sampling::uniform_hemisphere(rng.uniform().max(0.05), rng.uniform());
+            let wo = crate::sampling::uniform_hemisphere(rng.uniform().max(0.05), rng.uniform());
+            let (a, b) = (m.eval(wi, wo), m.eval(rot(wi, 1.2), rot(wo, 1.2)));
+            for c in 0..3 {
+                gap = gap.max((a[c] - b[c]).abs() / a[c].abs().max(b[c].abs()).max(1e-12));
+            }
+        }
+        assert!(gap > 0.05, "{name}: value unchanged by a rotation about the normal ({gap})");
+        assert!(fittable_models().iter().all(|i| i.name != *name));
+    }
+}

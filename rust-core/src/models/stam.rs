@@ -214,9 +214,9 @@ fn hat_weights(n: usize) -> Vec<(f64, [f64; 3])> {
         let x = ((l - LAMBDA_LO) / h).min((n - 1) as f64);
         let j = (x as usize).min(n - 2);
         let f = x - j as f64;
-        for c in 0..3 {
-            out[j].1[c] += (1.0 - f) * w[c] * q;
-            out[j + 1].1[c] += f * w[c] * q;
+        for (c, wc) in w.iter().enumerate() {
+            out[j].1[c] += (1.0 - f) * wc * q;
+            out[j + 1].1[c] += f * wc * q;
         }
     }
     out
@@ -415,6 +415,7 @@ impl Stam {
     }
 
     /// `Φ_λ(u, v; w)` of the random profile at one wavelength.
+    #[allow(clippy::too_many_arguments)]
     fn random_phi(&self, lambda: f64, u: f64, v: f64, w: f64, sigma: f64, tx: f64, ty: f64) -> f64 {
         let k = 2.0 * PI / lambda;
         let s2 = self.spread(lambda).powi(2);
