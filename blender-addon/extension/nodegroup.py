@@ -53,7 +53,7 @@ NODE_GROUP_VERSION = 3
 CELL_SCALE_FACTOR = 0.937
 
 #: Group inputs: (name, socket type, default, min, max, description). The first sixteen are the
-#: contract with the core's fit (docs/blender.md); "Pearl Size" is set from the paint directly.
+#: contract with the core's fit (docs/blender-fit.md, ../shared/CONTRACT.md); "Pearl Size" is set from the paint directly.
 INPUTS = (
     ("Pigment Color", "NodeSocketColor", (0.5, 0.03, 0.03), None, None,
      "Diffuse colour of the basecoat as seen through Principled's coat"),
