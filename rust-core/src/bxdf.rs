@@ -1,6 +1,7 @@
 //! The interface every reflectance model implements, and what a model claims about itself.
 
 use crate::error::Error;
+use crate::lanes::{self, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
@@ -34,6 +35,82 @@ impl<T: Real> BsdfSample<T> {
         }
         Some(Self { wi, weight, pdf, delta: false })
     }
+}
+
+/// Importance samples of a BRDF in lanes ([`BsdfSample`] per lane, with a validity mask
+/// instead of `Option`).
+#[derive(Clone, Copy, Debug)]
+pub struct LaneSample<L: Lanes> {
+    /// Sampled directions toward the light.
+    pub wi: Vec3<L>,
+    /// `f_r · cos θi / pdf`.
+    pub weight: Rgb<L>,
+    /// Solid-angle densities (for a delta lobe: the lobe probability).
+    pub pdf: L,
+    /// Lanes that hold a sample (elsewhere the other fields are meaningless).
+    pub valid: L::Mask,
+    /// Lanes whose sample comes from a Dirac delta lobe.
+    pub delta: L::Mask,
+}
+
+impl<L: Lanes> LaneSample<L> {
+    /// Samples from a smooth lobe, given the BRDF value and the density at `wi`: valid where
+    /// `valid` is set, the density is positive and finite, and the weight is finite (the
+    /// lane form of [`BsdfSample::from_eval`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn from_eval(wi: Vec3<L>, f: Rgb<L>, pdf: L, valid: L::Mask) -> Self {
+        let weight = f * (wi.z / pdf);
+        let finite_weight = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
+        let valid = valid & lanes::gt(pdf, L::c(0.0)) & lanes::is_finite(pdf) & finite_weight;
+        Self { wi, weight, pdf, valid, delta: L::Mask::splat(false) }
+    }
+}
+
+impl<T: Real> LaneSample<T> {
+    /// The one-lane sample as the scalar API returns it.
+    #[inline(always)]
+    #[must_use]
+    pub fn into_option(self) -> Option<BsdfSample<T>> {
+        self.valid.then_some(BsdfSample { wi: self.wi, weight: self.weight, pdf: self.pdf, delta: self.delta })
+    }
+}
+
+/// A model written against [`Lanes`]: one source for the f64 reference, the scalar f32 path
+/// and the SIMD batch kernels. Its [`Bxdf`] implementation forwards to these methods with a
+/// one-lane type. Directions are unit and finite; lanes below the horizon may return anything
+/// finite or not (the dispatcher masks them), but never affect other lanes.
+pub trait LaneBxdf {
+    /// [`Bxdf::eval`] per lane.
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L>;
+    /// [`Bxdf::pdf`] per lane.
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L;
+    /// [`Bxdf::sample`] per lane.
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L>;
+}
+
+/// Runs a scalar colour function of a direction pair on each lane: the bridge from lane code
+/// to parts that exist only in scalar form (tabulated compensation lobes, Newton iterations).
+#[inline(always)]
+pub fn per_lane_rgb<L: Lanes>(
+    wi: Vec3<L>,
+    wo: Vec3<L>,
+    f: impl Fn(Vec3<L::Elem>, Vec3<L::Elem>) -> Rgb<L::Elem>,
+) -> Rgb<L> {
+    const MAX_WIDTH: usize = 16;
+    assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+    let mut out = [Rgb::<L::Elem>::zero(); MAX_WIDTH];
+    for (i, o) in out.iter_mut().enumerate().take(L::WIDTH) {
+        *o = f(lane_of(wi, i), lane_of(wo, i));
+    }
+    Rgb::new(L::from_fn(|i| out[i].r), L::from_fn(|i| out[i].g), L::from_fn(|i| out[i].b))
+}
+
+/// Lane `i` of a vector of lanes.
+#[inline(always)]
+#[must_use]
+pub fn lane_of<L: Lanes>(w: Vec3<L>, i: usize) -> Vec3<L::Elem> {
+    Vec3::new(w.x.lane(i), w.y.lane(i), w.z.lane(i))
 }
 
 /// A surface position and its pixel footprint in uv space, for spatially varying effects

@@ -3,28 +3,29 @@
 //! Both directions point away from the surface. These helpers are the only place where
 //! spherical coordinates are derived from a direction.
 
+use crate::lanes::{self, Lanes};
 use crate::math::Vec3;
 use crate::real::Real;
 
 /// `cos θ` of a direction: its z component.
 #[inline(always)]
 #[must_use]
-pub fn cos_theta<T: Real>(w: Vec3<T>) -> T {
+pub fn cos_theta<T: Lanes>(w: Vec3<T>) -> T {
     w.z
 }
 
 /// `cos² θ`.
 #[inline(always)]
 #[must_use]
-pub fn cos2_theta<T: Real>(w: Vec3<T>) -> T {
+pub fn cos2_theta<T: Lanes>(w: Vec3<T>) -> T {
     w.z * w.z
 }
 
 /// `sin² θ`, never negative.
 #[inline(always)]
 #[must_use]
-pub fn sin2_theta<T: Real>(w: Vec3<T>) -> T {
-    (w.x * w.x + w.y * w.y).max(T::zero())
+pub fn sin2_theta<T: Lanes>(w: Vec3<T>) -> T {
+    lanes::max(w.x * w.x + w.y * w.y, T::c(0.0))
 }
 
 /// `sin θ`.
@@ -76,14 +77,14 @@ pub fn both_above<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> bool {
 /// Mirror reflection of `w` about the normal `n` (both pointing away from the surface).
 #[inline(always)]
 #[must_use]
-pub fn reflect<T: Real>(w: Vec3<T>, n: Vec3<T>) -> Vec3<T> {
-    n * (T::of(2.0) * w.dot(n)) - w
+pub fn reflect<T: Lanes>(w: Vec3<T>, n: Vec3<T>) -> Vec3<T> {
+    n * (T::c(2.0) * w.dot(n)) - w
 }
 
 /// Mirror direction of `w` about the geometric normal z.
 #[inline(always)]
 #[must_use]
-pub fn mirror_z<T: Real>(w: Vec3<T>) -> Vec3<T> {
+pub fn mirror_z<T: Lanes>(w: Vec3<T>) -> Vec3<T> {
     Vec3::new(-w.x, -w.y, w.z)
 }
 
@@ -108,13 +109,19 @@ pub fn refract<T: Real>(w: Vec3<T>, n: Vec3<T>, eta: T) -> Option<Vec3<T>> {
 #[inline(always)]
 #[must_use]
 pub fn half_vector<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> Option<Vec3<T>> {
+    let (h, defined) = half_vector_masked(wi, wo);
+    defined.then_some(h)
+}
+
+/// [`half_vector`] per lane: the half vector and where it is defined (elsewhere its lanes
+/// hold garbage that the caller masks out).
+#[inline(always)]
+#[must_use]
+pub fn half_vector_masked<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>) -> (Vec3<T>, T::Mask) {
     let h = wi + wo;
     let len2 = h.length_squared();
-    if len2 > T::zero() && len2.is_finite() {
-        Some(h / len2.sqrt())
-    } else {
-        None
-    }
+    let defined = lanes::gt(len2, T::c(0.0)) & lanes::is_finite(len2);
+    (h / lanes::sqrt(len2), defined)
 }
 
 /// Builds a unit direction from spherical coordinates.

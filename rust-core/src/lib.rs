@@ -26,6 +26,7 @@
 // `!(x > 0.0)` is used on purpose throughout: it treats NaN as "not positive".
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod batch;
 pub mod bxdf;
 pub mod check;
 pub mod color;
@@ -34,6 +35,7 @@ pub mod error;
 pub mod fit;
 pub mod frame;
 pub mod fresnel;
+pub mod lanes;
 pub mod material;
 pub mod math;
 pub mod measured;

@@ -1,5 +1,6 @@
 //! Small vector and colour types, generic over [`Real`].
 
+use crate::lanes::{self, Lanes};
 use crate::real::Real;
 use serde::Serialize;
 use std::ops::{Add, AddAssign, Div, Index, Mul, MulAssign, Neg, Sub};
@@ -15,30 +16,24 @@ pub struct Vec3<T> {
     pub z: T,
 }
 
-impl<T: Real> Vec3<T> {
+impl<T: Lanes> Vec3<T> {
     /// Builds a vector from its components.
     #[inline]
     #[must_use]
     pub fn new(x: T, y: T, z: T) -> Self {
         Self { x, y, z }
     }
-    /// Builds a vector from `f64` components.
+    /// Builds a vector from `f64` components (rounded to the lane precision).
     #[inline]
     #[must_use]
     pub fn from_f64(x: f64, y: f64, z: f64) -> Self {
-        Self::new(T::of(x), T::of(y), T::of(z))
+        Self::new(T::c(x), T::c(y), T::c(z))
     }
     /// The zero vector.
     #[inline]
     #[must_use]
     pub fn zero() -> Self {
-        Self::new(T::zero(), T::zero(), T::zero())
-    }
-    /// Converts to another precision.
-    #[inline]
-    #[must_use]
-    pub fn cast<U: Real>(self) -> Vec3<U> {
-        Vec3::new(U::of(self.x.f64()), U::of(self.y.f64()), U::of(self.z.f64()))
+        Self::new(T::c(0.0), T::c(0.0), T::c(0.0))
     }
     /// Dot product.
     #[inline]
@@ -62,19 +57,19 @@ impl<T: Real> Vec3<T> {
     #[inline]
     #[must_use]
     pub fn length(self) -> T {
-        self.length_squared().sqrt()
+        lanes::sqrt(self.length_squared())
     }
     /// Unit vector in the same direction (NaN for the zero vector).
     #[inline]
     #[must_use]
     pub fn normalize(self) -> Self {
-        self * (T::one() / self.length())
+        self * (T::c(1.0) / self.length())
     }
-    /// True when every component is finite.
+    /// Per lane: every component is finite.
     #[inline]
     #[must_use]
-    pub fn is_finite(self) -> bool {
-        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    pub fn finite_mask(self) -> T::Mask {
+        lanes::is_finite(self.x) & lanes::is_finite(self.y) & lanes::is_finite(self.z)
     }
     /// Component-wise fused `self * s + o`.
     #[inline]
@@ -82,37 +77,58 @@ impl<T: Real> Vec3<T> {
     pub fn scale_add(self, s: T, o: Self) -> Self {
         Self::new(self.x * s + o.x, self.y * s + o.y, self.z * s + o.z)
     }
+    /// Picks `a` or `b` per lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn select(m: T::Mask, a: Self, b: Self) -> Self {
+        Self::new(lanes::select(m, a.x, b.x), lanes::select(m, a.y, b.y), lanes::select(m, a.z, b.z))
+    }
 }
 
-impl<T: Real> Add for Vec3<T> {
+impl<T: Real> Vec3<T> {
+    /// Converts to another precision.
+    #[inline]
+    #[must_use]
+    pub fn cast<U: Real>(self) -> Vec3<U> {
+        Vec3::new(U::of(self.x.f64()), U::of(self.y.f64()), U::of(self.z.f64()))
+    }
+    /// True when every component is finite.
+    #[inline]
+    #[must_use]
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+}
+
+impl<T: Lanes> Add for Vec3<T> {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
         Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
     }
 }
-impl<T: Real> Sub for Vec3<T> {
+impl<T: Lanes> Sub for Vec3<T> {
     type Output = Self;
     #[inline]
     fn sub(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
     }
 }
-impl<T: Real> Neg for Vec3<T> {
+impl<T: Lanes> Neg for Vec3<T> {
     type Output = Self;
     #[inline]
     fn neg(self) -> Self {
         Self::new(-self.x, -self.y, -self.z)
     }
 }
-impl<T: Real> Mul<T> for Vec3<T> {
+impl<T: Lanes> Mul<T> for Vec3<T> {
     type Output = Self;
     #[inline]
     fn mul(self, s: T) -> Self {
         Self::new(self.x * s, self.y * s, self.z * s)
     }
 }
-impl<T: Real> Div<T> for Vec3<T> {
+impl<T: Lanes> Div<T> for Vec3<T> {
     type Output = Self;
     #[inline]
     fn div(self, s: T) -> Self {
@@ -131,7 +147,7 @@ pub struct Rgb<T> {
     pub b: T,
 }
 
-impl<T: Real> Rgb<T> {
+impl<T: Lanes> Rgb<T> {
     /// Builds a colour from its channels.
     #[inline]
     #[must_use]
@@ -148,25 +164,19 @@ impl<T: Real> Rgb<T> {
     #[inline]
     #[must_use]
     pub fn zero() -> Self {
-        Self::splat(T::zero())
+        Self::splat(T::c(0.0))
     }
-    /// Builds a colour from `[f64; 3]`.
+    /// Builds a colour from `[f64; 3]` (rounded to the lane precision).
     #[inline]
     #[must_use]
     pub fn from_array(c: [f64; 3]) -> Self {
-        Self::new(T::of(c[0]), T::of(c[1]), T::of(c[2]))
+        Self::new(T::c(c[0]), T::c(c[1]), T::c(c[2]))
     }
     /// The channels as an array.
     #[inline]
     #[must_use]
     pub fn to_array(self) -> [T; 3] {
         [self.r, self.g, self.b]
-    }
-    /// Converts to another precision.
-    #[inline]
-    #[must_use]
-    pub fn cast<U: Real>(self) -> Rgb<U> {
-        Rgb::new(U::of(self.r.f64()), U::of(self.g.f64()), U::of(self.b.f64()))
     }
     /// Applies `f` to each channel.
     #[inline]
@@ -179,6 +189,21 @@ impl<T: Real> Rgb<T> {
     #[must_use]
     pub fn zip(self, o: Self, f: impl Fn(T, T) -> T) -> Self {
         Self::new(f(self.r, o.r), f(self.g, o.g), f(self.b, o.b))
+    }
+    /// Picks `a` or `b` per lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn select(m: T::Mask, a: Self, b: Self) -> Self {
+        Self::new(lanes::select(m, a.r, b.r), lanes::select(m, a.g, b.g), lanes::select(m, a.b, b.b))
+    }
+}
+
+impl<T: Real> Rgb<T> {
+    /// Converts to another precision.
+    #[inline]
+    #[must_use]
+    pub fn cast<U: Real>(self) -> Rgb<U> {
+        Rgb::new(U::of(self.r.f64()), U::of(self.g.f64()), U::of(self.b.f64()))
     }
     /// Largest channel.
     #[inline]
@@ -218,47 +243,47 @@ impl<T: Real> Rgb<T> {
     }
 }
 
-impl<T: Real> Add for Rgb<T> {
+impl<T: Lanes> Add for Rgb<T> {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
         self.zip(o, |a, b| a + b)
     }
 }
-impl<T: Real> AddAssign for Rgb<T> {
+impl<T: Lanes> AddAssign for Rgb<T> {
     #[inline]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
-impl<T: Real> Sub for Rgb<T> {
+impl<T: Lanes> Sub for Rgb<T> {
     type Output = Self;
     #[inline]
     fn sub(self, o: Self) -> Self {
         self.zip(o, |a, b| a - b)
     }
 }
-impl<T: Real> Mul for Rgb<T> {
+impl<T: Lanes> Mul for Rgb<T> {
     type Output = Self;
     #[inline]
     fn mul(self, o: Self) -> Self {
         self.zip(o, |a, b| a * b)
     }
 }
-impl<T: Real> Mul<T> for Rgb<T> {
+impl<T: Lanes> Mul<T> for Rgb<T> {
     type Output = Self;
     #[inline]
     fn mul(self, s: T) -> Self {
         self.map(|a| a * s)
     }
 }
-impl<T: Real> MulAssign<T> for Rgb<T> {
+impl<T: Lanes> MulAssign<T> for Rgb<T> {
     #[inline]
     fn mul_assign(&mut self, s: T) {
         *self = *self * s;
     }
 }
-impl<T: Real> Div<T> for Rgb<T> {
+impl<T: Lanes> Div<T> for Rgb<T> {
     type Output = Self;
     #[inline]
     fn div(self, s: T) -> Self {

@@ -10,7 +10,8 @@
 //! Roughness is the slope-space `α` (Beckmann: RMS slope·√2⁻¹ convention of Walter et al.;
 //! α_x along the tangent, α_y along the bitangent).
 
-use crate::frame::{cos2_theta, cos_theta};
+use crate::frame::{cos2_theta, cos_theta, half_vector_masked};
+use crate::lanes::{self, eq, gt, keep, le, select, sqr, Lanes};
 use crate::math::Vec3;
 use crate::real::Real;
 use crate::special::{erfc, erfinv};
@@ -75,7 +76,7 @@ pub struct Microfacet<T> {
     pub alpha_y: T,
 }
 
-impl<T: Real> Microfacet<T> {
+impl<T: Lanes> Microfacet<T> {
     /// Builds a distribution; roughness values are taken as given (validated by the caller).
     #[inline]
     #[must_use]
@@ -84,130 +85,185 @@ impl<T: Real> Microfacet<T> {
     }
 
     /// Normal distribution `D(m)` (1/sr, projected-area normalised: ∫ D(m) cos θm dm = 1).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn d(&self, m: Vec3<T>) -> T {
-        if m.z <= T::zero() {
-            return T::zero();
-        }
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let sx = m.x / ax;
         let sy = m.y / ay;
         let z2 = m.z * m.z;
-        match self.kind {
+        let pi = T::c(std::f64::consts::PI);
+        let d = match self.kind {
             DistributionKind::Ggx => {
                 let t = sx * sx + sy * sy + z2;
-                T::one() / (T::PI() * ax * ay * t * t)
+                T::c(1.0) / (pi * ax * ay * t * t)
             }
             DistributionKind::Beckmann => {
                 let e = (sx * sx + sy * sy) / z2;
-                (-e).exp() / (T::PI() * ax * ay * z2 * z2)
+                lanes::exp(-e) / (pi * ax * ay * z2 * z2)
             }
-        }
+        };
+        keep(gt(m.z, T::c(0.0)), d)
     }
 
     /// Smith's auxiliary function `Λ(w)`; infinite at or below the horizon.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn lambda(&self, w: Vec3<T>) -> T {
-        if w.z <= T::zero() {
-            return T::infinity();
-        }
-        let a2_sin2 = (self.alpha_x * w.x).sqr() + (self.alpha_y * w.y).sqr();
-        if a2_sin2 == T::zero() {
-            return T::zero();
-        }
-        match self.kind {
+        let a2_sin2 = sqr(self.alpha_x * w.x) + sqr(self.alpha_y * w.y);
+        let l = match self.kind {
             DistributionKind::Ggx => {
                 // (√(1 + α²tan²θ) − 1)/2 written without cancellation.
                 let t = a2_sin2 / cos2_theta(w);
-                t / (T::of(2.0) * (T::one() + (T::one() + t).sqrt()))
+                t / (T::c(2.0) * (T::c(1.0) + lanes::sqrt(T::c(1.0) + t)))
             }
-            DistributionKind::Beckmann => {
-                // a = 1/(α tan θ); Λ = (e^{−a²}/(a√π) − erfc(a))/2.
-                let a = w.z / a2_sin2.sqrt();
-                if a > T::of(26.0) {
-                    return T::zero();
-                }
-                let inv_sqrt_pi = T::FRAC_2_SQRT_PI() * T::of(0.5);
-                ((-a * a).exp() * inv_sqrt_pi / a - erfc(a)).max(T::zero()) * T::of(0.5)
-            }
-        }
+            // erfc has no lane version yet: one lane at a time.
+            DistributionKind::Beckmann => T::from_fn(|i| beckmann_lambda(w.z.lane(i), a2_sin2.lane(i))),
+        };
+        let l = select(eq(a2_sin2, T::c(0.0)), T::c(0.0), l);
+        select(le(w.z, T::c(0.0)), T::c(f64::INFINITY), l)
     }
 
     /// Masking of a single direction by microfacets with normal `m` (0 on back-facing facets).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn g1(&self, w: Vec3<T>, m: Vec3<T>) -> T {
-        if w.dot(m) * cos_theta(w) <= T::zero() {
-            return T::zero();
-        }
-        T::one() / (T::one() + self.lambda(w))
+        let front = gt(w.dot(m) * cos_theta(w), T::c(0.0));
+        keep(front, T::c(1.0) / (T::c(1.0) + self.lambda(w)))
     }
 
     /// Bidirectional masking-shadowing for the chosen combination.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn g(&self, wi: Vec3<T>, wo: Vec3<T>, m: Vec3<T>, masking: MaskingKind) -> T {
-        if wi.dot(m) <= T::zero() || wo.dot(m) <= T::zero() {
-            return T::zero();
-        }
-        match masking {
+        let front = gt(wi.dot(m), T::c(0.0)) & gt(wo.dot(m), T::c(0.0));
+        let g = match masking {
             MaskingKind::Separable => self.g1(wi, m) * self.g1(wo, m),
-            MaskingKind::HeightCorrelated => T::one() / (T::one() + self.lambda(wi) + self.lambda(wo)),
+            MaskingKind::HeightCorrelated => T::c(1.0) / (T::c(1.0) + self.lambda(wi) + self.lambda(wo)),
             MaskingKind::VGroove => g_vgroove(wi, wo, m),
-        }
+        };
+        keep(front, g)
     }
 
     /// Smith masking of a direction on either side of the surface (e.g. a refracted direction
     /// below it): `1/(1 + Λ(w'))` with `w'` mirrored to the upper side, and 0 when `w` sees the
     /// back of the microfacet (`(w·m)·cos θw ≤ 0`).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn g1_either_side(&self, w: Vec3<T>, m: Vec3<T>) -> T {
-        if w.dot(m) * cos_theta(w) <= T::zero() {
-            return T::zero();
-        }
-        T::one() / (T::one() + self.lambda(Vec3::new(w.x, w.y, w.z.abs())))
+        let front = gt(w.dot(m) * cos_theta(w), T::c(0.0));
+        keep(front, T::c(1.0) / (T::c(1.0) + self.lambda(Vec3::new(w.x, w.y, lanes::abs(w.z)))))
     }
 
     /// Density of visible normals seen from `w`: `G1(w) max(0, w·m) D(m) / cos θw`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn visible_d(&self, w: Vec3<T>, m: Vec3<T>) -> T {
-        if w.z <= T::zero() {
-            return T::zero();
-        }
         let wm = w.dot(m);
-        if wm <= T::zero() {
-            return T::zero();
-        }
-        self.g1(w, m) * wm * self.d(m) / w.z
+        let visible = gt(w.z, T::c(0.0)) & gt(wm, T::c(0.0));
+        keep(visible, self.g1(w, m) * wm * self.d(m) / w.z)
     }
 
     /// Samples a microfacet normal. With `visible` the density is [`Self::visible_d`]
     /// (requires `w.z > 0`), otherwise `D(m) cos θm`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn sample_m(&self, w: Vec3<T>, u1: T, u2: T, visible: bool) -> Vec3<T> {
         match (visible, self.kind) {
             (true, DistributionKind::Ggx) => self.sample_visible_ggx(w, u1, u2),
-            (true, DistributionKind::Beckmann) => self.sample_visible_beckmann(w, u1, u2),
-            (false, _) => self.sample_full(u1, u2),
+            // Inherently scalar (trigonometric inversions, a Newton iteration): per lane.
+            (true, DistributionKind::Beckmann) => {
+                self.per_lane(w, u1, u2, |mf, w, u1, u2| mf.sample_visible_beckmann(w, u1, u2))
+            }
+            (false, _) => self.per_lane(w, u1, u2, |mf, _, u1, u2| mf.sample_full(u1, u2)),
         }
     }
 
+    /// Runs a scalar sampler on each lane.
+    #[inline(always)]
+    fn per_lane(
+        &self,
+        w: Vec3<T>,
+        u1: T,
+        u2: T,
+        f: impl Fn(&Microfacet<T::Elem>, Vec3<T::Elem>, T::Elem, T::Elem) -> Vec3<T::Elem>,
+    ) -> Vec3<T> {
+        const MAX_WIDTH: usize = 16;
+        assert!(T::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let mut out = [Vec3::<T::Elem>::zero(); MAX_WIDTH];
+        for (i, o) in out.iter_mut().enumerate().take(T::WIDTH) {
+            let mf = Microfacet::new(self.kind, self.alpha_x.lane(i), self.alpha_y.lane(i));
+            *o = f(&mf, Vec3::new(w.x.lane(i), w.y.lane(i), w.z.lane(i)), u1.lane(i), u2.lane(i));
+        }
+        Vec3::new(T::from_fn(|i| out[i].x), T::from_fn(|i| out[i].y), T::from_fn(|i| out[i].z))
+    }
+
     /// Density of [`Self::sample_m`] with the same `visible` flag.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn pdf_m(&self, w: Vec3<T>, m: Vec3<T>, visible: bool) -> T {
         if visible {
             self.visible_d(w, m)
         } else {
-            self.d(m) * m.z.max(T::zero())
+            self.d(m) * lanes::max(m.z, T::c(0.0))
         }
     }
 
+    /// [`Self::sample_reflection`] per lane: the direction and where it is valid (above the
+    /// horizon and finite).
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_reflection_masked(&self, wo: Vec3<T>, u1: T, u2: T, visible: bool) -> (Vec3<T>, T::Mask) {
+        let m = self.sample_m(wo, u1, u2, visible);
+        let wi = crate::frame::reflect(wo, m);
+        (wi, gt(wi.z, T::c(0.0)) & wi.finite_mask())
+    }
+
+    /// Solid-angle density of [`Self::sample_reflection`] at `wi` for `wo` (both above the
+    /// surface): `pdf_m(h) / (4 wo·h)` with `h` the half vector, written without the
+    /// cancelling `wo·h` for visible normals (`G1(wo) D(h) / (4 cos θo)`).
+    #[inline(always)]
+    #[must_use]
+    pub fn reflection_pdf(&self, wi: Vec3<T>, wo: Vec3<T>, visible: bool) -> T {
+        let (h, defined) = half_vector_masked(wi, wo);
+        let oh = wo.dot(h);
+        let ok = defined & gt(oh, T::c(0.0)) & gt(wo.z, T::c(0.0));
+        let pdf = if visible {
+            self.g1(wo, h) * self.d(h) / (T::c(4.0) * wo.z)
+        } else {
+            self.d(h) * lanes::max(h.z, T::c(0.0)) / (T::c(4.0) * oh)
+        };
+        keep(ok, pdf)
+    }
+
+    /// GGX visible normals by the spherical-cap method (Dupuy & Benyoub 2023).
+    #[inline(always)]
+    fn sample_visible_ggx(&self, w: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+        let (ax, ay) = (self.alpha_x, self.alpha_y);
+        let ws = Vec3::new(ax * w.x, ay * w.y, w.z).normalize();
+        let phi = T::c(std::f64::consts::TAU) * u1;
+        let z = (T::c(1.0) - u2) * (T::c(1.0) + ws.z) - ws.z;
+        let sin_t = lanes::safe_sqrt(T::c(1.0) - z * z);
+        let (sin_phi, cos_phi) = lanes::sin_cos(phi);
+        let cap = Vec3::new(sin_t * cos_phi, sin_t * sin_phi, z);
+        let h = cap + ws;
+        Vec3::new(ax * h.x, ay * h.y, lanes::max(h.z, T::c(0.0))).normalize()
+    }
+}
+
+/// Beckmann's Λ from `cos θ` and `α² sin² θ` (> 0): with `a = 1/(α tan θ)`,
+/// `Λ = (e^{−a²}/(a√π) − erfc(a))/2`.
+#[inline]
+fn beckmann_lambda<T: Real>(cos_theta: T, a2_sin2: T) -> T {
+    let a = cos_theta / a2_sin2.sqrt();
+    if a > T::of(26.0) {
+        return T::zero();
+    }
+    let inv_sqrt_pi = T::FRAC_2_SQRT_PI() * T::of(0.5);
+    ((-a * a).exp() * inv_sqrt_pi / a - erfc(a)).max(T::zero()) * T::of(0.5)
+}
+
+impl<T: Real> Microfacet<T> {
     /// Radial CDF of the projected-area distribution `D(m) cos θm`: the fraction of projected
     /// microfacet area whose normals lie inside the (stretched) slope ellipse through `m`, i.e.
     /// `1 − e^{−e}` (Beckmann) or `e/(1 + e)` (GGX) with `e = (m_x/(α_x m_z))² + (m_y/(α_y m_z))²`.
@@ -236,29 +292,8 @@ impl<T: Real> Microfacet<T> {
     #[inline]
     #[must_use]
     pub fn sample_reflection(&self, wo: Vec3<T>, u1: T, u2: T, visible: bool) -> Option<Vec3<T>> {
-        let m = self.sample_m(wo, u1, u2, visible);
-        let wi = crate::frame::reflect(wo, m);
-        (wi.z > T::zero() && wi.is_finite()).then_some(wi)
-    }
-
-    /// Solid-angle density of [`Self::sample_reflection`] at `wi` for `wo` (both above the
-    /// surface): `pdf_m(h) / (4 wo·h)` with `h` the half vector, written without the
-    /// cancelling `wo·h` for visible normals (`G1(wo) D(h) / (4 cos θo)`).
-    #[inline]
-    #[must_use]
-    pub fn reflection_pdf(&self, wi: Vec3<T>, wo: Vec3<T>, visible: bool) -> T {
-        let Some(h) = crate::frame::half_vector(wi, wo) else {
-            return T::zero();
-        };
-        let oh = wo.dot(h);
-        if !(oh > T::zero()) || !(wo.z > T::zero()) {
-            return T::zero();
-        }
-        if visible {
-            self.g1(wo, h) * self.d(h) / (T::of(4.0) * wo.z)
-        } else {
-            self.d(h) * h.z.max(T::zero()) / (T::of(4.0) * oh)
-        }
+        let (wi, valid) = self.sample_reflection_masked(wo, u1, u2, visible);
+        valid.then_some(wi)
     }
 
     /// Samples `D(m) cos θm` by inverting its CDF (anisotropic φ as in Walter et al. 2007).
@@ -281,18 +316,6 @@ impl<T: Real> Microfacet<T> {
         let cos_t = T::one() / (T::one() + tan2).sqrt();
         let sin_t = (T::one() - cos_t * cos_t).safe_sqrt();
         Vec3::new(sin_t * cos_phi, sin_t * sin_phi, cos_t)
-    }
-
-    /// GGX visible normals by the spherical-cap method (Dupuy & Benyoub 2023).
-    fn sample_visible_ggx(&self, w: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
-        let (ax, ay) = (self.alpha_x, self.alpha_y);
-        let ws = Vec3::new(ax * w.x, ay * w.y, w.z).normalize();
-        let phi = T::of(2.0) * T::PI() * u1;
-        let z = (T::one() - u2) * (T::one() + ws.z) - ws.z;
-        let sin_t = (T::one() - z * z).safe_sqrt();
-        let cap = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), z);
-        let h = cap + ws;
-        Vec3::new(ax * h.x, ay * h.y, h.z.max(T::zero())).normalize()
     }
 
     /// Beckmann visible normals: the stretched configuration's visible slope distribution is
@@ -347,13 +370,12 @@ fn beckmann_visible_slope(cot: f64, u: f64) -> f64 {
 /// `min(1, 2(n·h)(n·wo)/(wo·h), 2(n·h)(n·wi)/(wo·h))`.
 #[inline]
 #[must_use]
-pub fn g_vgroove<T: Real>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
+pub fn g_vgroove<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
     let oh = wo.dot(h);
-    if oh <= T::zero() || wi.dot(h) <= T::zero() {
-        return T::zero();
-    }
-    let two_nh = T::of(2.0) * h.z;
-    T::one().min(two_nh * wo.z / oh).min(two_nh * wi.z / oh).max(T::zero())
+    let front = gt(oh, T::c(0.0)) & gt(wi.dot(h), T::c(0.0));
+    let two_nh = T::c(2.0) * h.z;
+    let g = lanes::min(lanes::min(T::c(1.0), two_nh * wo.z / oh), two_nh * wi.z / oh);
+    keep(front, lanes::max(g, T::c(0.0)))
 }
 
 /// Jacobian of the reflection half-vector map: `dω_h/dω_i = 1/(4 |wo·h|)`.

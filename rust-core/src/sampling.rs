@@ -1,6 +1,7 @@
 //! Warps from the unit square to directions, with their densities (solid angle).
 
 use crate::frame::{basis_around, from_basis};
+use crate::lanes::{self, Lanes};
 use crate::math::Vec3;
 use crate::real::Real;
 
@@ -12,19 +13,19 @@ pub fn one_minus_epsilon<T: Real>() -> T {
 }
 
 /// Maps the unit square to the unit disk, preserving area and stratification (Shirley-Chiu).
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn concentric_disk<T: Real>(u1: T, u2: T) -> (T, T) {
-    let two = T::of(2.0);
-    let ox = two * u1 - T::one();
-    let oy = two * u2 - T::one();
-    if ox == T::zero() && oy == T::zero() {
-        return (T::zero(), T::zero());
-    }
-    let quarter_pi = T::FRAC_PI_4();
-    let (r, theta) =
-        if ox.abs() > oy.abs() { (ox, quarter_pi * (oy / ox)) } else { (oy, T::FRAC_PI_2() - quarter_pi * (ox / oy)) };
-    (r * theta.cos(), r * theta.sin())
+pub fn concentric_disk<T: Lanes>(u1: T, u2: T) -> (T, T) {
+    let two = T::c(2.0);
+    let ox = two * u1 - T::c(1.0);
+    let oy = two * u2 - T::c(1.0);
+    let quarter_pi = T::c(std::f64::consts::FRAC_PI_4);
+    let wide = lanes::gt(lanes::abs(ox), lanes::abs(oy));
+    let r = lanes::select(wide, ox, oy);
+    let theta = lanes::select(wide, quarter_pi * (oy / ox), T::c(std::f64::consts::FRAC_PI_2) - quarter_pi * (ox / oy));
+    let (sin_t, cos_t) = lanes::sin_cos(theta);
+    let centre = lanes::eq(ox, T::c(0.0)) & lanes::eq(oy, T::c(0.0));
+    (lanes::keep(!centre, r * cos_t), lanes::keep(!centre, r * sin_t))
 }
 
 /// Inverse of [`concentric_disk`]: the point of the unit square that maps to `(x, y)` on the
@@ -52,23 +53,19 @@ pub fn concentric_disk_inverse<T: Real>(x: T, y: T) -> (T, T) {
 }
 
 /// Cosine-weighted hemisphere around z (Malley's method).
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn cosine_hemisphere<T: Real>(u1: T, u2: T) -> Vec3<T> {
+pub fn cosine_hemisphere<T: Lanes>(u1: T, u2: T) -> Vec3<T> {
     let (x, y) = concentric_disk(u1, u2);
-    let z = (T::one() - x * x - y * y).safe_sqrt();
+    let z = lanes::safe_sqrt(T::c(1.0) - x * x - y * y);
     Vec3::new(x, y, z)
 }
 
 /// Density of [`cosine_hemisphere`]: `cos θ / π` above the surface, 0 below.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn cosine_hemisphere_pdf<T: Real>(cos_theta: T) -> T {
-    if cos_theta > T::zero() {
-        cos_theta * T::inv_pi()
-    } else {
-        T::zero()
-    }
+pub fn cosine_hemisphere_pdf<T: Lanes>(cos_theta: T) -> T {
+    lanes::keep(lanes::gt(cos_theta, T::c(0.0)), cos_theta * T::c(std::f64::consts::FRAC_1_PI))
 }
 
 /// Uniform direction on the upper hemisphere.

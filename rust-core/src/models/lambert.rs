@@ -7,7 +7,8 @@
 //! Sampling: cosine-weighted hemisphere, so the weight is exactly ρ.
 //! Reference: J. H. Lambert, *Photometria*, 1760.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::lanes::{self, Lanes, Mask};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
 use crate::models::Model;
@@ -39,21 +40,44 @@ pub struct Lambert {
     pub albedo: [f64; 3],
 }
 
-impl Bxdf for Lambert {
-    #[inline]
-    fn eval<T: Real>(&self, _wi: Vec3<T>, _wo: Vec3<T>) -> Rgb<T> {
-        Rgb::from_array(self.albedo) * T::inv_pi()
+impl LaneBxdf for Lambert {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, _wi: Vec3<L>, _wo: Vec3<L>) -> Rgb<L> {
+        Rgb::from_array(self.albedo) * L::c(std::f64::consts::FRAC_1_PI)
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, _wo: Vec3<T>) -> T {
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, _wo: Vec3<L>) -> L {
         cosine_hemisphere_pdf(wi.z)
     }
 
-    #[inline]
-    fn sample<T: Real>(&self, _wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, _wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
         let wi = cosine_hemisphere(u[1], u[2]);
         let pdf = cosine_hemisphere_pdf(wi.z);
-        (pdf > T::zero()).then(|| BsdfSample { wi, weight: Rgb::from_array(self.albedo), pdf, delta: false })
+        LaneSample {
+            wi,
+            weight: Rgb::from_array(self.albedo),
+            pdf,
+            valid: lanes::gt(pdf, L::c(0.0)),
+            delta: L::Mask::splat(false),
+        }
+    }
+}
+
+impl Bxdf for Lambert {
+    #[inline]
+    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_lanes(wi, wo)
+    }
+
+    #[inline]
+    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        self.pdf_lanes(wi, wo)
+    }
+
+    #[inline]
+    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+        self.sample_lanes(wo, u).into_option()
     }
 }

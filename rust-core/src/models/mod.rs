@@ -3,8 +3,9 @@
 //! Adding a model: write `models/<name>.rs` with a `pub static INFO: ModelInfo` and a type
 //! implementing [`Bxdf`], then add one line to the `models!` list below.
 
-use crate::bxdf::{BsdfSample, Bxdf, ModelInfo, SurfacePoint};
+use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
 use crate::frame::both_above;
+use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::real::Real;
 
@@ -154,5 +155,105 @@ impl Model {
     fn valid_sample<T: Real>(s: BsdfSample<T>) -> Option<BsdfSample<T>> {
         let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
         (valid && (s.delta || s.wi.z > T::zero())).then_some(s)
+    }
+}
+
+impl Model {
+    /// True when the model has a lane (SIMD) implementation; the others run one lane at a
+    /// time behind the same batch entry points.
+    #[must_use]
+    pub fn has_lane_kernel(&self) -> bool {
+        matches!(self, Model::Lambert(_) | Model::RoughConductor(_))
+    }
+
+    /// [`Model::eval`] per lane (unit, finite directions): zero where a direction is at or
+    /// below the horizon.
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        // Models see only the inputs the scalar path lets through: lanes below the horizon
+        // (whose results are discarded) get the normal instead.
+        let (wi, wo) = (
+            Vec3::select(above, wi, Vec3::from_f64(0.0, 0.0, 1.0)),
+            Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0)),
+        );
+        let f = match self {
+            Model::Lambert(m) => m.eval_lanes(wi, wo),
+            Model::RoughConductor(m) => m.eval_lanes(wi, wo),
+            _ => per_lane_rgb(wi, wo, |a, b| self.eval(a, b)),
+        };
+        Rgb::select(above, f, Rgb::zero())
+    }
+
+    /// [`Model::pdf`] per lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        let (wi, wo) = (
+            Vec3::select(above, wi, Vec3::from_f64(0.0, 0.0, 1.0)),
+            Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0)),
+        );
+        let pdf = match self {
+            Model::Lambert(m) => m.pdf_lanes(wi, wo),
+            Model::RoughConductor(m) => m.pdf_lanes(wi, wo),
+            _ => L::from_fn(|i| self.pdf(lane_of(wi, i), lane_of(wo, i))),
+        };
+        lanes::keep(above, pdf)
+    }
+
+    /// [`Model::sample`] per lane; `valid` is false where the scalar call returns `None`.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let above = lanes::gt(wo.z, L::c(0.0));
+        let wo = Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0));
+        let s = match self {
+            Model::Lambert(m) => m.sample_lanes(wo, u),
+            Model::RoughConductor(m) => m.sample_lanes(wo, u),
+            _ => self.sample_per_lane(wo, u),
+        };
+        let valid = s.valid
+            & above
+            & lanes::gt(s.pdf, L::c(0.0))
+            & lanes::is_finite(s.pdf)
+            & s.wi.finite_mask()
+            & (s.delta | lanes::gt(s.wi.z, L::c(0.0)));
+        let finite_weight = lanes::is_finite(s.weight.r) & lanes::is_finite(s.weight.g) & lanes::is_finite(s.weight.b);
+        LaneSample { valid: valid & finite_weight, ..s }
+    }
+
+    /// The scalar sampler on each lane.
+    #[inline(never)]
+    fn sample_per_lane<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        const MAX_WIDTH: usize = 16;
+        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let zero = <L::Elem as num_traits::Zero>::zero();
+        let mut out = [None; MAX_WIDTH];
+        for (i, o) in out.iter_mut().enumerate().take(L::WIDTH) {
+            *o = self.sample(lane_of(wo, i), [u[0].lane(i), u[1].lane(i), u[2].lane(i)]);
+        }
+        let get = |i: usize, f: &dyn Fn(&BsdfSample<L::Elem>) -> L::Elem| out[i].as_ref().map_or(zero, f);
+        let ones = L::from_fn(|i| if out[i].is_some() { <L::Elem as num_traits::One>::one() } else { zero });
+        let valid = lanes::gt(ones, L::c(0.5));
+        let deltas =
+            L::from_fn(|i| if out[i].is_some_and(|s| s.delta) { <L::Elem as num_traits::One>::one() } else { zero });
+        let delta = lanes::gt(deltas, L::c(0.5));
+        LaneSample {
+            wi: Vec3::new(
+                L::from_fn(|i| get(i, &|s| s.wi.x)),
+                L::from_fn(|i| get(i, &|s| s.wi.y)),
+                L::from_fn(|i| get(i, &|s| s.wi.z)),
+            ),
+            weight: Rgb::new(
+                L::from_fn(|i| get(i, &|s| s.weight.r)),
+                L::from_fn(|i| get(i, &|s| s.weight.g)),
+                L::from_fn(|i| get(i, &|s| s.weight.b)),
+            ),
+            pdf: L::from_fn(|i| get(i, &|s| s.pdf)),
+            valid,
+            delta,
+        }
     }
 }

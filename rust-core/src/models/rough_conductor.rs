@@ -60,10 +60,11 @@
 //! Distribution of Visible Normals", EGSR 2014; Mitsuba 3 `src/bsdfs/roughconductor.cpp` and
 //! `include/mitsuba/render/microfacet.h`; C. Kulla, A. Conty, SIGGRAPH 2017 course.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
-use crate::frame::half_vector;
+use crate::frame::half_vector_masked;
+use crate::lanes::{self, Lanes};
 use crate::fresnel::{conductor, conductor_rgb, metal};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
@@ -202,8 +203,9 @@ pub struct RoughConductor {
 }
 
 impl RoughConductor {
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        Microfacet::new(self.distribution, T::of(self.alpha_u), T::of(self.alpha_v))
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        Microfacet::new(self.distribution, T::c(self.alpha_u), T::c(self.alpha_v))
     }
 
     /// Selection probability of the specular lobe for this `wo` (1 without compensation).
@@ -221,47 +223,69 @@ impl RoughConductor {
             T::one()
         }
     }
+
+    /// The single-scattering microfacet lobe, without `specular_reflectance`.
+    #[inline(always)]
+    fn single_scattering<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let (h, defined) = half_vector_masked(wi, wo);
+        let mf = self.microfacet::<T>();
+        let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
+        let fr = conductor_rgb(wo.dot(h), Rgb::from_array(self.eta), Rgb::from_array(self.k));
+        Rgb::select(defined, fr * (dg / (T::c(4.0) * wi.z * wo.z)), Rgb::zero())
+    }
+}
+
+impl LaneBxdf for RoughConductor {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let mut f = self.single_scattering(wi, wo);
+        if let Some(ms) = &self.ms {
+            // The compensation lobe is tabulated in scalar form: one lane at a time.
+            f += per_lane_rgb(wi, wo, |a, b| ms.eval(a, b));
+        }
+        f * Rgb::from_array(self.specular_reflectance)
+    }
+
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let spec = self.microfacet::<L>().reflection_pdf(wi, wo, self.sample_visible);
+        if self.ms.is_none() {
+            return spec;
+        }
+        let ps = L::from_fn(|i| self.specular_probability(lane_of(wo, i)));
+        ps * spec + (L::c(1.0) - ps) * cosine_hemisphere_pdf(wi.z)
+    }
+
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let (spec_wi, spec_ok) =
+            self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], self.sample_visible);
+        let (wi, valid) = if self.ms.is_none() {
+            (spec_wi, spec_ok)
+        } else {
+            let ps = L::from_fn(|i| self.specular_probability(lane_of(wo, i)));
+            let specular = lanes::lt(u[0], ps);
+            let diffuse_wi = cosine_hemisphere(u[1], u[2]);
+            (Vec3::select(specular, spec_wi, diffuse_wi), spec_ok | !specular)
+        };
+        LaneSample::from_eval(wi, self.eval_lanes(wi, wo), self.pdf_lanes(wi, wo), valid)
+    }
 }
 
 impl Bxdf for RoughConductor {
     #[inline]
     fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let scale = Rgb::from_array(self.specular_reflectance);
-        let mut f = match &self.ms {
-            Some(ms) => ms.eval(wi, wo),
-            None => Rgb::zero(),
-        };
-        if let Some(h) = half_vector(wi, wo) {
-            let mf = self.microfacet::<T>();
-            let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
-            let fr = conductor_rgb(wo.dot(h), Rgb::from_array(self.eta), Rgb::from_array(self.k));
-            f += fr * (dg / (T::of(4.0) * wi.z * wo.z));
-        }
-        f * scale
+        self.eval_lanes(wi, wo)
     }
 
     #[inline]
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let spec = self
-            .microfacet::<T>()
-            .reflection_pdf(wi, wo, self.sample_visible);
-        if self.ms.is_none() {
-            return spec;
-        }
-        let ps = self.specular_probability(wo);
-        ps * spec + (T::one() - ps) * cosine_hemisphere_pdf(wi.z)
+        self.pdf_lanes(wi, wo)
     }
 
     #[inline]
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let ps = self.specular_probability(wo);
-        let wi = if u[0] < ps {
-            self.microfacet::<T>()
-                .sample_reflection(wo, u[1], u[2], self.sample_visible)?
-        } else {
-            cosine_hemisphere(u[1], u[2])
-        };
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        self.sample_lanes(wo, u).into_option()
     }
 }
 

@@ -1,0 +1,657 @@
+//! Batch evaluation, density and sampling over arrays: the SIMD kernels, runtime CPU
+//! dispatch and parallel execution that every host's batch call goes through.
+//!
+//! - **Layouts**: [`Src3`]/[`Dst3`] describe `n` 3-vectors as three component pointers and a
+//!   stride (in elements): structure-of-arrays (stride 1), interleaved `xyz` (stride 3) and any
+//!   strided layout a host holds, read and written in place without copies.
+//! - **Lanes**: models with a lane implementation ([`Model::has_lane_kernel`]) run 16 (AVX-512)
+//!   or 8 (AVX2 + FMA) elements per instruction; the level is detected once at run time
+//!   ([`simd_level`]), so the library is built for baseline x86-64. Other models, and other
+//!   CPUs, run one element at a time behind the same calls.
+//! - **Threads**: batches of at least [`PARALLEL_MIN`] elements are split over a rayon pool of
+//!   [`thread_count`] threads (default: all cores; [`set_thread_count`]). Results do not
+//!   depend on the thread count: each element is computed the same way on any thread.
+//! - **Inputs** are treated as `Material` treats them: directions need not be unit (they are
+//!   normalised), a non-finite or zero-length direction makes that element invalid (zero
+//!   outputs, counted in [`BatchReport`]). Inactive elements (`active[i] == 0`) get zero outputs
+//!   and are not read for validation.
+
+use crate::bxdf::LaneSample;
+use crate::lanes::{self, Lanes, Mask};
+use crate::material::Material;
+use crate::math::{Rgb, Vec3};
+use crate::models::Model;
+use crate::real::Real;
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// Batches at least this long are split over threads (smaller ones run on the caller's thread).
+pub const PARALLEL_MIN: usize = 1 << 15;
+/// Elements per parallel work item.
+const CHUNK: usize = 1 << 13;
+
+/// The instruction set the batch kernels use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SimdLevel {
+    /// One element at a time (any CPU).
+    Scalar,
+    /// 8 `f32` lanes, AVX2 + FMA (x86-64-v3).
+    Avx2,
+    /// 16 `f32` lanes, AVX-512F.
+    Avx512,
+}
+
+impl SimdLevel {
+    /// Lanes per instruction.
+    #[must_use]
+    pub fn width(self) -> usize {
+        match self {
+            SimdLevel::Scalar => 1,
+            SimdLevel::Avx2 => 8,
+            SimdLevel::Avx512 => 16,
+        }
+    }
+    /// Name as `lacquer bench` and the environment variable spell it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdLevel::Scalar => "scalar",
+            SimdLevel::Avx2 => "avx2",
+            SimdLevel::Avx512 => "avx512",
+        }
+    }
+    /// The best level this CPU supports.
+    #[must_use]
+    pub fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if is_x86_feature_detected!("avx512f") {
+                return SimdLevel::Avx512;
+            }
+            if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+                return SimdLevel::Avx2;
+            }
+        }
+        SimdLevel::Scalar
+    }
+    /// True when this CPU can run the level.
+    #[must_use]
+    pub fn supported(self) -> bool {
+        self.width() <= Self::detect().width()
+    }
+}
+
+static LEVEL: AtomicU8 = AtomicU8::new(u8::MAX);
+
+/// The level in use: [`SimdLevel::detect`], unless lowered by [`set_simd_level`] or the
+/// environment variable `LACQUER_SIMD` (`scalar`, `avx2`, `avx512`) read on first use.
+#[must_use]
+pub fn simd_level() -> SimdLevel {
+    match LEVEL.load(Ordering::Relaxed) {
+        0 => SimdLevel::Scalar,
+        1 => SimdLevel::Avx2,
+        2 => SimdLevel::Avx512,
+        _ => {
+            let detected = SimdLevel::detect();
+            let wanted = match std::env::var("LACQUER_SIMD").as_deref() {
+                Ok("scalar") => SimdLevel::Scalar,
+                Ok("avx2") => SimdLevel::Avx2,
+                _ => detected,
+            };
+            let level = if wanted.supported() { wanted } else { detected };
+            set_simd_level(level);
+            level
+        }
+    }
+}
+
+/// Selects the instruction set (for benchmarks and tests); a level the CPU lacks is refused
+/// (returns false and changes nothing).
+pub fn set_simd_level(level: SimdLevel) -> bool {
+    if !level.supported() {
+        return false;
+    }
+    let code = match level {
+        SimdLevel::Scalar => 0,
+        SimdLevel::Avx2 => 1,
+        SimdLevel::Avx512 => 2,
+    };
+    LEVEL.store(code, Ordering::Relaxed);
+    true
+}
+
+static THREADS: AtomicUsize = AtomicUsize::new(0);
+static POOL: Mutex<Option<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+
+/// Limits the threads a large batch uses: 1 runs every batch on the calling thread; 0 (the
+/// default) uses every core.
+pub fn set_thread_count(n: usize) {
+    THREADS.store(n, Ordering::Relaxed);
+}
+
+/// Threads a large batch uses ([`set_thread_count`]; 0 means all cores).
+#[must_use]
+pub fn thread_count() -> usize {
+    match THREADS.load(Ordering::Relaxed) {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    }
+}
+
+fn pool(threads: usize) -> Option<Arc<rayon::ThreadPool>> {
+    let mut guard = POOL.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((n, p)) = guard.as_ref() {
+        if *n == threads {
+            return Some(p.clone());
+        }
+    }
+    let p = Arc::new(
+        rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("lacquer-{i}")).build().ok()?,
+    );
+    *guard = Some((threads, p.clone()));
+    Some(p)
+}
+
+/// `n` read-only 3-vectors: element `i` is `(x[i·stride], y[i·stride], z[i·stride])`.
+#[derive(Clone, Copy, Debug)]
+pub struct Src3<'a, E> {
+    p: [*const E; 3],
+    stride: usize,
+    n: usize,
+    _life: PhantomData<&'a [E]>,
+}
+
+/// `n` writable 3-vectors (or colours), laid out as [`Src3`].
+#[derive(Debug)]
+pub struct Dst3<'a, E> {
+    p: [*mut E; 3],
+    stride: usize,
+    n: usize,
+    _life: PhantomData<&'a mut [E]>,
+}
+
+/// `n` writable scalars with a stride.
+#[derive(Debug)]
+pub struct Dst1<'a, E> {
+    p: *mut E,
+    stride: usize,
+    n: usize,
+    _life: PhantomData<&'a mut [E]>,
+}
+
+// SAFETY: the views are plain pointers into caller-owned arrays; kernels on different threads
+// touch disjoint elements, and reads never race with writes (inputs and outputs are distinct
+// arrays by the constructors' contracts).
+unsafe impl<E: Sync> Send for Src3<'_, E> {}
+unsafe impl<E: Sync> Sync for Src3<'_, E> {}
+unsafe impl<E: Send> Send for Dst3<'_, E> {}
+unsafe impl<E: Send> Sync for Dst3<'_, E> {}
+unsafe impl<E: Send> Send for Dst1<'_, E> {}
+unsafe impl<E: Send> Sync for Dst1<'_, E> {}
+
+/// Why a view could not be built from slices.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LayoutError(pub String);
+
+impl std::fmt::Display for LayoutError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+fn check_len(name: &str, have: usize, need: usize) -> Result<(), LayoutError> {
+    if have < need {
+        return Err(LayoutError(format!("{name} holds {have} values, {need} needed")));
+    }
+    Ok(())
+}
+
+impl<'a, E> Src3<'a, E> {
+    /// Structure of arrays: `x[i]`, `y[i]`, `z[i]`.
+    pub fn soa(x: &'a [E], y: &'a [E], z: &'a [E]) -> Result<Self, LayoutError> {
+        let n = x.len();
+        check_len("y", y.len(), n)?;
+        check_len("z", z.len(), n)?;
+        Ok(Self { p: [x.as_ptr(), y.as_ptr(), z.as_ptr()], stride: 1, n, _life: PhantomData })
+    }
+    /// Interleaved `x0 y0 z0 x1 y1 z1 …` (`xyz.len() / 3` elements).
+    #[must_use]
+    pub fn interleaved(xyz: &'a [E]) -> Self {
+        let n = xyz.len() / 3;
+        let p = xyz.as_ptr();
+        // SAFETY: offsets 1 and 2 stay inside (or one past the end of) the slice.
+        Self { p: [p, p.wrapping_add(1), p.wrapping_add(2)], stride: 3, n, _life: PhantomData }
+    }
+    /// A view from raw pointers (the C ABI's strided layouts).
+    ///
+    /// # Safety
+    /// For every `i < n`, `x.add(i * stride)` (and `y`, `z`) is readable for `'a`.
+    #[must_use]
+    pub unsafe fn from_raw(x: *const E, y: *const E, z: *const E, stride: usize, n: usize) -> Self {
+        Self { p: [x, y, z], stride, n, _life: PhantomData }
+    }
+    /// Number of elements.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.n
+    }
+    /// True when there are no elements.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+}
+
+impl<'a, E> Dst3<'a, E> {
+    /// Structure of arrays.
+    pub fn soa(x: &'a mut [E], y: &'a mut [E], z: &'a mut [E]) -> Result<Self, LayoutError> {
+        let n = x.len();
+        check_len("y", y.len(), n)?;
+        check_len("z", z.len(), n)?;
+        Ok(Self { p: [x.as_mut_ptr(), y.as_mut_ptr(), z.as_mut_ptr()], stride: 1, n, _life: PhantomData })
+    }
+    /// Interleaved `xyz` / `rgb`.
+    #[must_use]
+    pub fn interleaved(xyz: &'a mut [E]) -> Self {
+        let n = xyz.len() / 3;
+        let p = xyz.as_mut_ptr();
+        Self { p: [p, p.wrapping_add(1), p.wrapping_add(2)], stride: 3, n, _life: PhantomData }
+    }
+    /// A view from raw pointers.
+    ///
+    /// # Safety
+    /// For every `i < n`, `x.add(i * stride)` (and `y`, `z`) is writable for `'a`, and no other
+    /// view reads or writes those elements meanwhile.
+    #[must_use]
+    pub unsafe fn from_raw(x: *mut E, y: *mut E, z: *mut E, stride: usize, n: usize) -> Self {
+        Self { p: [x, y, z], stride, n, _life: PhantomData }
+    }
+}
+
+impl<'a, E> Dst1<'a, E> {
+    /// A contiguous array.
+    #[must_use]
+    pub fn new(v: &'a mut [E]) -> Self {
+        Self { p: v.as_mut_ptr(), stride: 1, n: v.len(), _life: PhantomData }
+    }
+    /// A view from a raw pointer.
+    ///
+    /// # Safety
+    /// As [`Dst3::from_raw`].
+    #[must_use]
+    pub unsafe fn from_raw(p: *mut E, stride: usize, n: usize) -> Self {
+        Self { p, stride, n, _life: PhantomData }
+    }
+}
+
+/// What a batch call found wrong with its inputs (active elements only).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BatchReport {
+    /// Elements with a non-finite or zero-length direction (outputs set to zero).
+    pub invalid_directions: usize,
+    /// The first such element.
+    pub first_invalid_direction: Option<usize>,
+    /// Elements with a non-finite `u` (sampling; outputs set to zero).
+    pub invalid_u: usize,
+    /// The first such element.
+    pub first_invalid_u: Option<usize>,
+}
+
+impl BatchReport {
+    /// True when every active element was valid.
+    #[must_use]
+    pub fn ok(&self) -> bool {
+        self.invalid_directions == 0 && self.invalid_u == 0
+    }
+    fn merge(self, o: Self) -> Self {
+        let first = |a: Option<usize>, b: Option<usize>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        Self {
+            invalid_directions: self.invalid_directions + o.invalid_directions,
+            first_invalid_direction: first(self.first_invalid_direction, o.first_invalid_direction),
+            invalid_u: self.invalid_u + o.invalid_u,
+            first_invalid_u: first(self.first_invalid_u, o.first_invalid_u),
+        }
+    }
+    #[cold]
+    #[inline(never)]
+    fn record<M: Mask>(&mut self, start: usize, width: usize, bad_dir: M, bad_u: M) {
+        for j in 0..width {
+            if bad_dir.lane(j) {
+                self.invalid_directions += 1;
+                self.first_invalid_direction.get_or_insert(start + j);
+            } else if bad_u.lane(j) {
+                self.invalid_u += 1;
+                self.first_invalid_u.get_or_insert(start + j);
+            }
+        }
+    }
+}
+
+/// Lanes `start..start + width` of a 3-vector view (missing lanes of a short tail hold `pad`).
+#[inline(always)]
+unsafe fn load3<L: Lanes>(s: &Src3<L::Elem>, start: usize, width: usize, pad: [f64; 3]) -> Vec3<L> {
+    let comp = |c: usize| -> L {
+        let p = s.p[c];
+        if width == L::WIDTH && s.stride == 1 {
+            // SAFETY: elements start..start+WIDTH exist (caller) and are contiguous.
+            unsafe { L::load_ptr(p.add(start)) }
+        } else {
+            let pad = <L::Elem as Real>::of(pad[c]);
+            // SAFETY: only lanes below `width` are read.
+            L::from_fn(|j| if j < width { unsafe { *p.add((start + j) * s.stride) } } else { pad })
+        }
+    };
+    Vec3::new(comp(0), comp(1), comp(2))
+}
+
+/// Stores lanes `start..start + width` into a 3-component view.
+#[inline(always)]
+unsafe fn store3<L: Lanes>(d: &Dst3<L::Elem>, start: usize, width: usize, v: [L; 3]) {
+    for (c, comp) in v.into_iter().enumerate() {
+        let p = d.p[c];
+        if width == L::WIDTH && d.stride == 1 {
+            // SAFETY: as in load3.
+            unsafe { comp.store_ptr(p.add(start)) }
+        } else {
+            for j in 0..width {
+                // SAFETY: lane j < width exists.
+                unsafe { *p.add((start + j) * d.stride) = comp.lane(j) }
+            }
+        }
+    }
+}
+
+#[inline(always)]
+unsafe fn store1<L: Lanes>(d: &Dst1<L::Elem>, start: usize, width: usize, v: L) {
+    if width == L::WIDTH && d.stride == 1 {
+        // SAFETY: as in load3.
+        unsafe { v.store_ptr(d.p.add(start)) }
+    } else {
+        for j in 0..width {
+            // SAFETY: lane j < width exists.
+            unsafe { *d.p.add((start + j) * d.stride) = v.lane(j) }
+        }
+    }
+}
+
+/// Active lanes: all below `width`, and those whose `active` byte is non-zero.
+#[inline(always)]
+fn active_lanes<L: Lanes>(active: Option<&[u8]>, start: usize, width: usize) -> L::Mask {
+    let one = <L::Elem as Real>::of(1.0);
+    let zero = <L::Elem as Real>::of(0.0);
+    let flags = match active {
+        None if width == L::WIDTH => return L::Mask::splat(true),
+        None => L::from_fn(|j| if j < width { one } else { zero }),
+        Some(a) => L::from_fn(|j| if j < width && a[start + j] != 0 { one } else { zero }),
+    };
+    lanes::gt(flags, L::c(0.5))
+}
+
+/// Per lane: the direction is usable (finite, non-zero length), and its unit version (the
+/// same test and normalisation as `Material`).
+#[inline(always)]
+fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
+    let l2 = w.length_squared();
+    let usable = lanes::gt(l2, L::c(0.0)) & lanes::is_finite(l2);
+    let eps = <L::Elem as num_traits::Float>::epsilon();
+    let off_unit = lanes::gt(lanes::abs(l2 - L::c(1.0)), L::c(64.0) * L::splat(eps));
+    let scale = lanes::select(off_unit, L::c(1.0) / lanes::sqrt(l2), L::c(1.0));
+    (w * scale, usable)
+}
+
+const UP: [f64; 3] = [0.0, 0.0, 1.0];
+
+#[inline(always)]
+fn eval_pdf_kernel<L: Lanes>(
+    model: &Model,
+    range: (usize, usize),
+    wi: &Src3<L::Elem>,
+    wo: &Src3<L::Elem>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<L::Elem>>,
+    pdf: Option<&Dst1<L::Elem>>,
+) -> BatchReport {
+    let mut report = BatchReport::default();
+    let mut start = range.0;
+    while start < range.1 {
+        let width = L::WIDTH.min(range.1 - start);
+        let on = active_lanes::<L>(active, start, width);
+        // SAFETY: start + width ≤ n for every view (checked by the public functions).
+        let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
+        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+        let ok = a_ok & o_ok;
+        if !(ok | !on).all() {
+            report.record(start, width, on & !ok, L::Mask::splat(false));
+        }
+        let keep = on & ok;
+        if let Some(f) = f {
+            let v = model.eval_lanes(a, o);
+            let v = Rgb::select(keep, v, Rgb::zero());
+            unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
+        }
+        if let Some(pdf) = pdf {
+            let v = lanes::keep(keep, model.pdf_lanes(a, o));
+            unsafe { store1(pdf, start, width, v) };
+        }
+        start += width;
+    }
+    report
+}
+
+/// Outputs of [`sample`].
+#[derive(Debug)]
+pub struct SampleOut<'a, E> {
+    /// Sampled directions.
+    pub wi: Dst3<'a, E>,
+    /// Weights `f cos θi / pdf`.
+    pub weight: Dst3<'a, E>,
+    /// Densities.
+    pub pdf: Dst1<'a, E>,
+    /// Optional per-element flags ([`SAMPLE_DELTA`], [`SAMPLE_FAILED`], [`SAMPLE_INVALID_INPUT`]).
+    pub flags: Option<&'a mut [u32]>,
+}
+
+/// Flag: the sample comes from a Dirac delta lobe.
+pub const SAMPLE_DELTA: u32 = 1;
+/// Flag: no sample (wo below the surface or rejected); outputs are zero.
+pub const SAMPLE_FAILED: u32 = 2;
+/// Flag: the element's inputs were invalid; outputs are zero.
+pub const SAMPLE_INVALID_INPUT: u32 = 4;
+
+#[inline(always)]
+fn sample_kernel<L: Lanes>(
+    model: &Model,
+    range: (usize, usize),
+    wo: &Src3<L::Elem>,
+    u: &Src3<L::Elem>,
+    active: Option<&[u8]>,
+    out: &SampleOut<L::Elem>,
+    flags: Option<*mut u32>,
+) -> BatchReport {
+    let mut report = BatchReport::default();
+    let mut start = range.0;
+    let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
+    while start < range.1 {
+        let width = L::WIDTH.min(range.1 - start);
+        let on = active_lanes::<L>(active, start, width);
+        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+        let uu = unsafe { load3::<L>(u, start, width, [0.5; 3]) };
+        let u_ok = lanes::is_finite(uu.x) & lanes::is_finite(uu.y) & lanes::is_finite(uu.z);
+        if !((o_ok & u_ok) | !on).all() {
+            report.record(start, width, on & !o_ok, on & !u_ok);
+        }
+        let clamp_u = |x: L| lanes::clamp(x, L::c(0.0), L::splat(below_one));
+        let s: LaneSample<L> = model.sample_lanes(o, [clamp_u(uu.x), clamp_u(uu.y), clamp_u(uu.z)]);
+        let inputs_ok = on & o_ok & u_ok;
+        let good = inputs_ok & s.valid;
+        let wi = Vec3::select(good, s.wi, Vec3::zero());
+        let weight = Rgb::select(good, s.weight, Rgb::zero());
+        unsafe {
+            store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
+            store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
+            store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
+        }
+        if let Some(fl) = flags {
+            for j in 0..width {
+                let v = if !on.lane(j) {
+                    0
+                } else if !inputs_ok.lane(j) {
+                    SAMPLE_FAILED | SAMPLE_INVALID_INPUT
+                } else if !good.lane(j) {
+                    SAMPLE_FAILED
+                } else if s.delta.lane(j) {
+                    SAMPLE_DELTA
+                } else {
+                    0
+                };
+                // SAFETY: the flags slice holds n values (checked by `sample`).
+                unsafe { *fl.add(start + j) = v };
+            }
+        }
+        start += width;
+    }
+    report
+}
+
+/// Runs `kernel` over `0..n`, split over the thread pool when the batch is large.
+fn run<K>(n: usize, kernel: K) -> BatchReport
+where
+    K: Fn(usize, usize) -> BatchReport + Sync,
+{
+    let threads = thread_count();
+    if threads <= 1 || n < PARALLEL_MIN {
+        return kernel(0, n);
+    }
+    let Some(pool) = pool(threads) else {
+        return kernel(0, n);
+    };
+    use rayon::prelude::*;
+    let chunks = n.div_ceil(CHUNK);
+    pool.install(|| {
+        (0..chunks)
+            .into_par_iter()
+            .map(|c| kernel(c * CHUNK, ((c + 1) * CHUNK).min(n)))
+            .reduce(BatchReport::default, BatchReport::merge)
+    })
+}
+
+/// The arguments of one f32 batch call, so the per-level kernels have one signature.
+#[derive(Clone, Copy)]
+enum Args<'v, 'a> {
+    EvalPdf {
+        wi: &'v Src3<'a, f32>,
+        wo: &'v Src3<'a, f32>,
+        active: Option<&'a [u8]>,
+        f: Option<&'v Dst3<'a, f32>>,
+        pdf: Option<&'v Dst1<'a, f32>>,
+    },
+    Sample {
+        wo: &'v Src3<'a, f32>,
+        u: &'v Src3<'a, f32>,
+        active: Option<&'a [u8]>,
+        out: &'v SampleOut<'a, f32>,
+        flags: Option<*mut u32>,
+    },
+}
+
+// SAFETY: see the views' Send/Sync; `flags` points to disjoint elements per thread.
+unsafe impl Send for Args<'_, '_> {}
+unsafe impl Sync for Args<'_, '_> {}
+
+impl Args<'_, '_> {
+    #[inline(always)]
+    fn run<L: Lanes<Elem = f32>>(self, model: &Model, range: (usize, usize)) -> BatchReport {
+        match self {
+            Args::EvalPdf { wi, wo, active, f, pdf } => eval_pdf_kernel::<L>(model, range, wi, wo, active, f, pdf),
+            Args::Sample { wo, u, active, out, flags } => sample_kernel::<L>(model, range, wo, u, active, out, flags),
+        }
+    }
+
+    /// Runs the kernel for `range` at the selected instruction set.
+    fn dispatch(self, model: &Model, range: (usize, usize)) -> BatchReport {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2(args: Args<'_, '_>, model: &Model, range: (usize, usize)) -> BatchReport {
+                args.run::<crate::lanes::x86::F32x8>(model, range)
+            }
+            #[target_feature(enable = "avx512f")]
+            fn avx512(args: Args<'_, '_>, model: &Model, range: (usize, usize)) -> BatchReport {
+                args.run::<crate::lanes::x86::F32x16>(model, range)
+            }
+            if model.has_lane_kernel() {
+                match simd_level() {
+                    // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
+                    SimdLevel::Avx512 => return unsafe { avx512(self, model, range) },
+                    SimdLevel::Avx2 => return unsafe { avx2(self, model, range) },
+                    SimdLevel::Scalar => {}
+                }
+            }
+        }
+        self.run::<f32>(model, range)
+    }
+}
+
+fn check_views(n: usize, lens: &[(&str, usize)]) -> Result<(), LayoutError> {
+    for &(name, len) in lens {
+        check_len(name, len, n)?;
+    }
+    Ok(())
+}
+
+/// `f_r(wi, wo)` and/or the sampling density for `n = wi.len()` elements in f32, through the
+/// SIMD kernels. `active` (optional) holds `n` bytes, 0 = inactive.
+pub fn eval_pdf(
+    m: &Material,
+    wi: &Src3<f32>,
+    wo: &Src3<f32>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f32>>,
+    pdf: Option<&Dst1<f32>>,
+) -> Result<BatchReport, LayoutError> {
+    let n = wi.n;
+    check_views(n, &[("wo", wo.n)])?;
+    check_views(n, &[("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
+    let args = Args::EvalPdf { wi, wo, active, f, pdf };
+    Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
+}
+
+/// Samples `wi` for `n = wo.len()` elements in f32; `u` holds three uniform numbers per element
+/// (clamped into [0, 1)).
+pub fn sample(
+    m: &Material,
+    wo: &Src3<f32>,
+    u: &Src3<f32>,
+    active: Option<&[u8]>,
+    out: &mut SampleOut<f32>,
+) -> Result<BatchReport, LayoutError> {
+    let n = wo.n;
+    check_views(n, &[("u", u.n), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("wi", out.wi.n), ("weight", out.weight.n), ("pdf", out.pdf.n)])?;
+    check_views(n, &[("flags", out.flags.as_ref().map_or(n, |f| f.len()))])?;
+    let flags = out.flags.as_mut().map(|f| f.as_mut_ptr());
+    let out: &SampleOut<f32> = out;
+    let args = Args::Sample { wo, u, active, out, flags };
+    Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
+}
+
+/// [`eval_pdf`] in f64 (the reference path, one element at a time, same layouts and rules).
+pub fn eval_pdf_f64(
+    m: &Material,
+    wi: &Src3<f64>,
+    wo: &Src3<f64>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f64>>,
+    pdf: Option<&Dst1<f64>>,
+) -> Result<BatchReport, LayoutError> {
+    let n = wi.n;
+    check_views(n, &[("wo", wo.n), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
+    Ok(run(n, |s, e| eval_pdf_kernel::<f64>(m.model(), (s, e), wi, wo, active, f, pdf)))
+}

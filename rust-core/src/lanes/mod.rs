@@ -1,0 +1,326 @@
+//! Lanes: the number type the SIMD-capable models are written against.
+//!
+//! A model written once against [`Lanes`] gives every precision from one source:
+//! - `f64` — the reference path (one lane, `Mask = bool`, `std` maths),
+//! - `f32` — the scalar fast path (one lane),
+//! - [`F32x8`](x86::F32x8) (AVX2 + FMA) and [`F32x16`](x86::F32x16) (AVX-512) — eight or
+//!   sixteen `f32` lanes per operation, used by the batch kernels in [`crate::batch`].
+//!
+//! Every [`Real`] is a one-lane [`Lanes`] (blanket implementation), so lane-generic code is
+//! callable from the scalar models unchanged. Branches become masked selects, as in Dr.Jit or
+//! ISPC code: compute both sides, keep one with [`select`]; a lane's result never depends on
+//! another lane. Where an algorithm is inherently scalar (a Newton iteration with data-dependent
+//! exits), lane code calls the scalar routine per lane with [`Lanes::map_lanes`].
+//!
+//! Write lane code with the free functions of this module (`sqrt(x)`, `max(a, b)`,
+//! `select(m, a, b)`, `lt(a, b)` …): they read like the formulas and never collide with
+//! `num_traits::Float` methods in files that also hold scalar code.
+
+use crate::real::Real;
+use std::fmt::Debug;
+use std::ops::{Add, AddAssign, BitAnd, BitOr, Div, DivAssign, Mul, MulAssign, Neg, Not, Sub, SubAssign};
+
+mod poly;
+#[cfg(target_arch = "x86_64")]
+pub mod x86;
+
+/// A per-lane truth value: `bool` for one lane, a bit mask for SIMD lanes.
+pub trait Mask:
+    Copy + Debug + Send + Sync + 'static + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self>
+{
+    /// The same value in every lane.
+    fn splat(b: bool) -> Self;
+    /// True when any lane is set.
+    fn any(self) -> bool;
+    /// True when every lane is set.
+    fn all(self) -> bool;
+    /// Lane `i`.
+    fn lane(self, i: usize) -> bool;
+}
+
+impl Mask for bool {
+    #[inline(always)]
+    fn splat(b: bool) -> Self {
+        b
+    }
+    #[inline(always)]
+    fn any(self) -> bool {
+        self
+    }
+    #[inline(always)]
+    fn all(self) -> bool {
+        self
+    }
+    #[inline(always)]
+    fn lane(self, _i: usize) -> bool {
+        self
+    }
+}
+
+/// One or more floating-point lanes with masked selection: what SIMD models are generic over.
+pub trait Lanes:
+    Copy
+    + Debug
+    + Send
+    + Sync
+    + 'static
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign
+    + DivAssign
+{
+    /// Per-lane truth values.
+    type Mask: Mask;
+    /// The scalar type of one lane (`f32` or `f64`).
+    type Elem: Real;
+    /// Number of lanes.
+    const WIDTH: usize;
+
+    /// `x` in every lane.
+    fn splat(x: Self::Elem) -> Self;
+    /// Builds lanes from a function of the lane index.
+    fn from_fn(f: impl FnMut(usize) -> Self::Elem) -> Self;
+    /// Lane `i`.
+    fn lane(self, i: usize) -> Self::Elem;
+    /// Loads `WIDTH` consecutive values.
+    ///
+    /// # Safety
+    /// `p` points to `WIDTH` readable values.
+    unsafe fn load_ptr(p: *const Self::Elem) -> Self;
+    /// Stores `WIDTH` consecutive values.
+    ///
+    /// # Safety
+    /// `p` points to `WIDTH` writable values.
+    unsafe fn store_ptr(self, p: *mut Self::Elem);
+    /// Square root (exact, correctly rounded).
+    fn sqrt_(self) -> Self;
+    /// Absolute value.
+    fn abs_(self) -> Self;
+    /// Lane-wise minimum.
+    fn min_(self, o: Self) -> Self;
+    /// Lane-wise maximum.
+    fn max_(self, o: Self) -> Self;
+    /// `self · a + b`, fused where the hardware has FMA.
+    fn mul_add_(self, a: Self, b: Self) -> Self;
+    /// Largest integer not above each lane.
+    fn floor_(self) -> Self;
+    /// `self · 2^k` for integral `k` (as a float) in `[-126, 127]`.
+    fn ldexp_(self, k: Self) -> Self;
+    /// `|self|` with the sign of `sign`.
+    fn copysign_(self, sign: Self) -> Self;
+    /// `self < o`.
+    fn lt_(self, o: Self) -> Self::Mask;
+    /// `self <= o`.
+    fn le_(self, o: Self) -> Self::Mask;
+    /// `self == o`.
+    fn eq_(self, o: Self) -> Self::Mask;
+    /// `m ? a : b` per lane.
+    fn select_(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `e^x`.
+    fn exp_(self) -> Self;
+    /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
+    fn sin_cos_(self) -> (Self, Self);
+
+    /// An `f64` constant or parameter in every lane (rounded to the lane precision).
+    #[inline(always)]
+    fn c(x: f64) -> Self {
+        Self::splat(Self::Elem::of(x))
+    }
+    /// Applies a scalar function to each lane (for inherently scalar algorithms).
+    #[inline(always)]
+    fn map_lanes(self, mut f: impl FnMut(Self::Elem) -> Self::Elem) -> Self {
+        Self::from_fn(|i| f(self.lane(i)))
+    }
+}
+
+/// Every scalar [`Real`] is one lane: the reference (`f64`) and scalar fast (`f32`) paths.
+impl<T: Real> Lanes for T {
+    type Mask = bool;
+    type Elem = T;
+    const WIDTH: usize = 1;
+
+    #[inline(always)]
+    fn splat(x: T) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn from_fn(mut f: impl FnMut(usize) -> T) -> Self {
+        f(0)
+    }
+    #[inline(always)]
+    fn lane(self, _i: usize) -> T {
+        self
+    }
+    #[inline(always)]
+    unsafe fn load_ptr(p: *const T) -> Self {
+        // SAFETY: the caller guarantees one readable value.
+        unsafe { p.read() }
+    }
+    #[inline(always)]
+    unsafe fn store_ptr(self, p: *mut T) {
+        // SAFETY: the caller guarantees one writable value.
+        unsafe { p.write(self) }
+    }
+    #[inline(always)]
+    fn sqrt_(self) -> Self {
+        num_traits::Float::sqrt(self)
+    }
+    #[inline(always)]
+    fn abs_(self) -> Self {
+        num_traits::Float::abs(self)
+    }
+    #[inline(always)]
+    fn min_(self, o: Self) -> Self {
+        num_traits::Float::min(self, o)
+    }
+    #[inline(always)]
+    fn max_(self, o: Self) -> Self {
+        num_traits::Float::max(self, o)
+    }
+    #[inline(always)]
+    fn mul_add_(self, a: Self, b: Self) -> Self {
+        // Not `Float::mul_add`: without hardware FMA it is a slow library call.
+        self * a + b
+    }
+    #[inline(always)]
+    fn floor_(self) -> Self {
+        num_traits::Float::floor(self)
+    }
+    #[inline(always)]
+    fn ldexp_(self, k: Self) -> Self {
+        self * num_traits::Float::powi(T::of(2.0), k.f64() as i32)
+    }
+    #[inline(always)]
+    fn copysign_(self, sign: Self) -> Self {
+        num_traits::Float::copysign(self, sign)
+    }
+    #[inline(always)]
+    fn lt_(self, o: Self) -> bool {
+        self < o
+    }
+    #[inline(always)]
+    fn le_(self, o: Self) -> bool {
+        self <= o
+    }
+    #[inline(always)]
+    fn eq_(self, o: Self) -> bool {
+        self == o
+    }
+    #[inline(always)]
+    fn select_(m: bool, a: Self, b: Self) -> Self {
+        if m {
+            a
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    fn exp_(self) -> Self {
+        num_traits::Float::exp(self)
+    }
+    #[inline(always)]
+    fn sin_cos_(self) -> (Self, Self) {
+        num_traits::Float::sin_cos(self)
+    }
+}
+
+/// Square root.
+#[inline(always)]
+pub fn sqrt<L: Lanes>(x: L) -> L {
+    x.sqrt_()
+}
+/// `sqrt(max(x, 0))`: tolerates rounding below zero.
+#[inline(always)]
+pub fn safe_sqrt<L: Lanes>(x: L) -> L {
+    x.max_(L::c(0.0)).sqrt_()
+}
+/// Absolute value.
+#[inline(always)]
+pub fn abs<L: Lanes>(x: L) -> L {
+    x.abs_()
+}
+/// Lane-wise minimum.
+#[inline(always)]
+pub fn min<L: Lanes>(a: L, b: L) -> L {
+    a.min_(b)
+}
+/// Lane-wise maximum.
+#[inline(always)]
+pub fn max<L: Lanes>(a: L, b: L) -> L {
+    a.max_(b)
+}
+/// Clamps to `[lo, hi]`.
+#[inline(always)]
+pub fn clamp<L: Lanes>(x: L, lo: L, hi: L) -> L {
+    x.max_(lo).min_(hi)
+}
+/// `a · b + c` (fused where the hardware has FMA).
+#[inline(always)]
+pub fn mul_add<L: Lanes>(a: L, b: L, c: L) -> L {
+    a.mul_add_(b, c)
+}
+/// `x · x`.
+#[inline(always)]
+pub fn sqr<L: Lanes>(x: L) -> L {
+    x * x
+}
+/// `e^x`.
+#[inline(always)]
+pub fn exp<L: Lanes>(x: L) -> L {
+    x.exp_()
+}
+/// `(sin x, cos x)`.
+#[inline(always)]
+pub fn sin_cos<L: Lanes>(x: L) -> (L, L) {
+    x.sin_cos_()
+}
+/// `|x|` with the sign of `sign`.
+#[inline(always)]
+pub fn copysign<L: Lanes>(x: L, sign: L) -> L {
+    x.copysign_(sign)
+}
+/// `m ? a : b` per lane.
+#[inline(always)]
+pub fn select<L: Lanes>(m: L::Mask, a: L, b: L) -> L {
+    L::select_(m, a, b)
+}
+/// `a < b` per lane (false for NaN).
+#[inline(always)]
+pub fn lt<L: Lanes>(a: L, b: L) -> L::Mask {
+    a.lt_(b)
+}
+/// `a <= b` per lane (false for NaN).
+#[inline(always)]
+pub fn le<L: Lanes>(a: L, b: L) -> L::Mask {
+    a.le_(b)
+}
+/// `a > b` per lane (false for NaN).
+#[inline(always)]
+pub fn gt<L: Lanes>(a: L, b: L) -> L::Mask {
+    b.lt_(a)
+}
+/// `a >= b` per lane (false for NaN).
+#[inline(always)]
+pub fn ge<L: Lanes>(a: L, b: L) -> L::Mask {
+    b.le_(a)
+}
+/// `a == b` per lane.
+#[inline(always)]
+pub fn eq<L: Lanes>(a: L, b: L) -> L::Mask {
+    a.eq_(b)
+}
+/// True per lane when `x` is finite (false for NaN and ±∞).
+#[inline(always)]
+pub fn is_finite<L: Lanes>(x: L) -> L::Mask {
+    x.abs_().le_(L::splat(<L::Elem as num_traits::Float>::max_value()))
+}
+/// `x` where `m` is set, zero elsewhere.
+#[inline(always)]
+pub fn keep<L: Lanes>(m: L::Mask, x: L) -> L {
+    L::select_(m, x, L::c(0.0))
+}

@@ -1,0 +1,427 @@
+//! x86-64 SIMD lanes: [`F32x8`] (AVX2 + FMA) and [`F32x16`] (AVX-512F).
+//!
+//! # Safety contract
+//! These types wrap registers whose instructions the baseline x86-64 target does not have.
+//! Their operations are `#[inline(always)]` and call the intrinsics directly, so they must
+//! only run inside a function compiled with the matching `#[target_feature]` and entered after
+//! `is_x86_feature_detected!` confirmed the CPU has it. [`crate::batch`] is the only place
+//! that creates them and it does exactly that ([`crate::batch::SimdLevel`]); the types are
+//! public for documentation and benchmarks, and every constructor is reachable only through
+//! the [`Lanes`] trait inside such a kernel.
+
+use super::{poly, Lanes, Mask};
+use std::arch::x86_64::*;
+use std::fmt;
+use std::ops::{Add, AddAssign, BitAnd, BitOr, Div, DivAssign, Mul, MulAssign, Neg, Not, Sub, SubAssign};
+
+/// Eight `f32` lanes in an AVX register.
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct F32x8(__m256);
+
+/// Eight lane masks (all-ones or all-zero bits per lane).
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct M32x8(__m256);
+
+/// Sixteen `f32` lanes in an AVX-512 register.
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct F32x16(__m512);
+
+/// Sixteen lane masks (one bit per lane, AVX-512 `k` register).
+#[derive(Clone, Copy, Debug)]
+#[repr(transparent)]
+pub struct M16(u16);
+
+macro_rules! lane_debug {
+    ($t:ty) => {
+        impl fmt::Debug for $t {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                let v: Vec<f32> = (0..<$t as Lanes>::WIDTH).map(|i| self.lane(i)).collect();
+                write!(f, "{}{:?}", stringify!($t), v)
+            }
+        }
+    };
+}
+lane_debug!(F32x8);
+lane_debug!(F32x16);
+
+impl fmt::Debug for M32x8 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v: Vec<bool> = (0..8).map(|i| self.lane(i)).collect();
+        write!(f, "M32x8{v:?}")
+    }
+}
+
+// SAFETY (every `unsafe` block in this file): see the module's safety contract — these run
+// only inside kernels compiled for, and entered after detecting, AVX2+FMA (F32x8, M32x8) or
+// AVX-512F (F32x16, M16). Loads and stores go through arrays of the exact width.
+
+macro_rules! binops {
+    ($t:ident, $add:ident, $sub:ident, $mul:ident, $div:ident) => {
+        impl Add for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                Self(unsafe { $add(self.0, o.0) })
+            }
+        }
+        impl Sub for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                Self(unsafe { $sub(self.0, o.0) })
+            }
+        }
+        impl Mul for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn mul(self, o: Self) -> Self {
+                Self(unsafe { $mul(self.0, o.0) })
+            }
+        }
+        impl Div for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn div(self, o: Self) -> Self {
+                Self(unsafe { $div(self.0, o.0) })
+            }
+        }
+        impl Neg for $t {
+            type Output = Self;
+            #[inline(always)]
+            fn neg(self) -> Self {
+                self.flip_sign()
+            }
+        }
+        impl AddAssign for $t {
+            #[inline(always)]
+            fn add_assign(&mut self, o: Self) {
+                *self = *self + o;
+            }
+        }
+        impl SubAssign for $t {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: Self) {
+                *self = *self - o;
+            }
+        }
+        impl MulAssign for $t {
+            #[inline(always)]
+            fn mul_assign(&mut self, o: Self) {
+                *self = *self * o;
+            }
+        }
+        impl DivAssign for $t {
+            #[inline(always)]
+            fn div_assign(&mut self, o: Self) {
+                *self = *self / o;
+            }
+        }
+    };
+}
+binops!(F32x8, _mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_div_ps);
+binops!(F32x16, _mm512_add_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_div_ps);
+
+impl F32x8 {
+    #[inline(always)]
+    fn flip_sign(self) -> Self {
+        Self(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
+    }
+    /// Loads eight consecutive values.
+    #[inline(always)]
+    pub fn load(s: &[f32; 8]) -> Self {
+        Self(unsafe { _mm256_loadu_ps(s.as_ptr()) })
+    }
+    /// Stores eight consecutive values.
+    #[inline(always)]
+    pub fn store(self, s: &mut [f32; 8]) {
+        unsafe { _mm256_storeu_ps(s.as_mut_ptr(), self.0) }
+    }
+}
+
+impl F32x16 {
+    #[inline(always)]
+    fn flip_sign(self) -> Self {
+        Self(unsafe { _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(self.0), _mm512_set1_epi32(i32::MIN))) })
+    }
+    /// Loads sixteen consecutive values.
+    #[inline(always)]
+    pub fn load(s: &[f32; 16]) -> Self {
+        Self(unsafe { _mm512_loadu_ps(s.as_ptr()) })
+    }
+    /// Stores sixteen consecutive values.
+    #[inline(always)]
+    pub fn store(self, s: &mut [f32; 16]) {
+        unsafe { _mm512_storeu_ps(s.as_mut_ptr(), self.0) }
+    }
+}
+
+impl BitAnd for M32x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn bitand(self, o: Self) -> Self {
+        Self(unsafe { _mm256_and_ps(self.0, o.0) })
+    }
+}
+impl BitOr for M32x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn bitor(self, o: Self) -> Self {
+        Self(unsafe { _mm256_or_ps(self.0, o.0) })
+    }
+}
+impl Not for M32x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn not(self) -> Self {
+        Self(unsafe { _mm256_xor_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(-1))) })
+    }
+}
+impl Mask for M32x8 {
+    #[inline(always)]
+    fn splat(b: bool) -> Self {
+        Self(unsafe { _mm256_castsi256_ps(_mm256_set1_epi32(if b { -1 } else { 0 })) })
+    }
+    #[inline(always)]
+    fn any(self) -> bool {
+        unsafe { _mm256_movemask_ps(self.0) != 0 }
+    }
+    #[inline(always)]
+    fn all(self) -> bool {
+        unsafe { _mm256_movemask_ps(self.0) == 0xff }
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> bool {
+        unsafe { (_mm256_movemask_ps(self.0) >> i) & 1 != 0 }
+    }
+}
+
+impl BitAnd for M16 {
+    type Output = Self;
+    #[inline(always)]
+    fn bitand(self, o: Self) -> Self {
+        Self(self.0 & o.0)
+    }
+}
+impl BitOr for M16 {
+    type Output = Self;
+    #[inline(always)]
+    fn bitor(self, o: Self) -> Self {
+        Self(self.0 | o.0)
+    }
+}
+impl Not for M16 {
+    type Output = Self;
+    #[inline(always)]
+    fn not(self) -> Self {
+        Self(!self.0)
+    }
+}
+impl Mask for M16 {
+    #[inline(always)]
+    fn splat(b: bool) -> Self {
+        Self(if b { u16::MAX } else { 0 })
+    }
+    #[inline(always)]
+    fn any(self) -> bool {
+        self.0 != 0
+    }
+    #[inline(always)]
+    fn all(self) -> bool {
+        self.0 == u16::MAX
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> bool {
+        (self.0 >> i) & 1 != 0
+    }
+}
+
+impl Lanes for F32x8 {
+    type Mask = M32x8;
+    type Elem = f32;
+    const WIDTH: usize = 8;
+
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Self(unsafe { _mm256_set1_ps(x) })
+    }
+    #[inline(always)]
+    fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
+        let a: [f32; 8] = std::array::from_fn(&mut f);
+        Self::load(&a)
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> f32 {
+        let mut a = [0.0f32; 8];
+        self.store(&mut a);
+        a[i]
+    }
+    #[inline(always)]
+    unsafe fn load_ptr(p: *const f32) -> Self {
+        Self(unsafe { _mm256_loadu_ps(p) })
+    }
+    #[inline(always)]
+    unsafe fn store_ptr(self, p: *mut f32) {
+        unsafe { _mm256_storeu_ps(p, self.0) }
+    }
+    #[inline(always)]
+    fn sqrt_(self) -> Self {
+        Self(unsafe { _mm256_sqrt_ps(self.0) })
+    }
+    #[inline(always)]
+    fn abs_(self) -> Self {
+        Self(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+    }
+    #[inline(always)]
+    fn min_(self, o: Self) -> Self {
+        Self(unsafe { _mm256_min_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn max_(self, o: Self) -> Self {
+        Self(unsafe { _mm256_max_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn mul_add_(self, a: Self, b: Self) -> Self {
+        Self(unsafe { _mm256_fmadd_ps(self.0, a.0, b.0) })
+    }
+    #[inline(always)]
+    fn floor_(self) -> Self {
+        Self(unsafe { _mm256_floor_ps(self.0) })
+    }
+    #[inline(always)]
+    fn ldexp_(self, k: Self) -> Self {
+        // 2^k built from its exponent bits, in two halves so k = ±127..128 stays in range.
+        unsafe {
+            let k1 = _mm256_floor_ps(_mm256_mul_ps(k.0, _mm256_set1_ps(0.5)));
+            let k2 = _mm256_sub_ps(k.0, k1);
+            let bias = _mm256_set1_epi32(127);
+            let p1 = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(_mm256_cvtps_epi32(k1), bias)));
+            let p2 = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(_mm256_cvtps_epi32(k2), bias)));
+            Self(_mm256_mul_ps(_mm256_mul_ps(self.0, p1), p2))
+        }
+    }
+    #[inline(always)]
+    fn copysign_(self, sign: Self) -> Self {
+        unsafe {
+            let m = _mm256_set1_ps(-0.0);
+            Self(_mm256_or_ps(_mm256_andnot_ps(m, self.0), _mm256_and_ps(m, sign.0)))
+        }
+    }
+    #[inline(always)]
+    fn lt_(self, o: Self) -> M32x8 {
+        M32x8(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn le_(self, o: Self) -> M32x8 {
+        M32x8(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn eq_(self, o: Self) -> M32x8 {
+        M32x8(unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn select_(m: M32x8, a: Self, b: Self) -> Self {
+        Self(unsafe { _mm256_blendv_ps(b.0, a.0, m.0) })
+    }
+    #[inline(always)]
+    fn exp_(self) -> Self {
+        poly::exp_f32(self)
+    }
+    #[inline(always)]
+    fn sin_cos_(self) -> (Self, Self) {
+        poly::sin_cos_f32(self)
+    }
+}
+
+impl Lanes for F32x16 {
+    type Mask = M16;
+    type Elem = f32;
+    const WIDTH: usize = 16;
+
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Self(unsafe { _mm512_set1_ps(x) })
+    }
+    #[inline(always)]
+    fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
+        let a: [f32; 16] = std::array::from_fn(&mut f);
+        Self::load(&a)
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> f32 {
+        let mut a = [0.0f32; 16];
+        self.store(&mut a);
+        a[i]
+    }
+    #[inline(always)]
+    unsafe fn load_ptr(p: *const f32) -> Self {
+        Self(unsafe { _mm512_loadu_ps(p) })
+    }
+    #[inline(always)]
+    unsafe fn store_ptr(self, p: *mut f32) {
+        unsafe { _mm512_storeu_ps(p, self.0) }
+    }
+    #[inline(always)]
+    fn sqrt_(self) -> Self {
+        Self(unsafe { _mm512_sqrt_ps(self.0) })
+    }
+    #[inline(always)]
+    fn abs_(self) -> Self {
+        Self(unsafe { _mm512_abs_ps(self.0) })
+    }
+    #[inline(always)]
+    fn min_(self, o: Self) -> Self {
+        Self(unsafe { _mm512_min_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn max_(self, o: Self) -> Self {
+        Self(unsafe { _mm512_max_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn mul_add_(self, a: Self, b: Self) -> Self {
+        Self(unsafe { _mm512_fmadd_ps(self.0, a.0, b.0) })
+    }
+    #[inline(always)]
+    fn floor_(self) -> Self {
+        Self(unsafe { _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(self.0) })
+    }
+    #[inline(always)]
+    fn ldexp_(self, k: Self) -> Self {
+        Self(unsafe { _mm512_scalef_ps(self.0, k.0) })
+    }
+    #[inline(always)]
+    fn copysign_(self, sign: Self) -> Self {
+        unsafe {
+            let m = _mm512_set1_epi32(i32::MIN);
+            let a = _mm512_andnot_si512(m, _mm512_castps_si512(self.0));
+            let s = _mm512_and_si512(m, _mm512_castps_si512(sign.0));
+            Self(_mm512_castsi512_ps(_mm512_or_si512(a, s)))
+        }
+    }
+    #[inline(always)]
+    fn lt_(self, o: Self) -> M16 {
+        M16(unsafe { _mm512_cmp_ps_mask::<_CMP_LT_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn le_(self, o: Self) -> M16 {
+        M16(unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn eq_(self, o: Self) -> M16 {
+        M16(unsafe { _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn select_(m: M16, a: Self, b: Self) -> Self {
+        Self(unsafe { _mm512_mask_blend_ps(m.0, b.0, a.0) })
+    }
+    #[inline(always)]
+    fn exp_(self) -> Self {
+        poly::exp_f32(self)
+    }
+    #[inline(always)]
+    fn sin_cos_(self) -> (Self, Self) {
+        poly::sin_cos_f32(self)
+    }
+}
