@@ -194,6 +194,10 @@ impl<'a, E> RawMut<'a, E> {
     fn new(ptr: *mut E, len: usize) -> Self {
         Self { ptr, len, _life: std::marker::PhantomData }
     }
+    /// The validated pointer (for views that keep raw pointers, e.g. strided SoA arrays).
+    pub(crate) fn ptr(&self) -> *mut E {
+        self.ptr
+    }
     /// # Safety
     /// As [`Raw::slice`], and the memory is writable and overlaps no other array of the call.
     pub(crate) unsafe fn slice(self) -> &'a mut [E] {

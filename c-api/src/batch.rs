@@ -186,7 +186,7 @@ fn valid<T: Real>(i: usize, a: Vec3<T>, o: Vec3<T>, spatial: &Spatial<T>, bad: &
 /// eval and/or pdf over a batch; with `uv` and `duv` the spatially varying evaluation
 /// (`Material::eval_at`; the density does not depend on position, see `lq_eval_spatial`).
 #[allow(clippy::too_many_arguments)]
-unsafe fn eval_pdf_impl<T: Real>(
+unsafe fn eval_pdf_impl<T: CoreBatch>(
     m: *const lq_material,
     n: usize,
     wi: *const T,
@@ -226,6 +226,27 @@ unsafe fn eval_pdf_impl<T: Real>(
     let f_rgb = f_rgb.map(|a| unsafe { a.slice() });
     let pdf = pdf.map(|a| unsafe { a.slice() });
 
+    if spatial.uv.is_none() {
+        // The core's batch kernels (SIMD lanes, threads); same per-element policy.
+        let flat_f = f_rgb.map(|f| lacquer_core::batch::Dst3::interleaved(f.as_flattened_mut()));
+        let flat_p = pdf.map(|p| lacquer_core::batch::Dst1::new(p.as_flattened_mut()));
+        let report = T::eval_pdf(
+            m,
+            &lacquer_core::batch::Src3::interleaved(wi.as_flattened()),
+            &lacquer_core::batch::Src3::interleaved(wo.as_flattened()),
+            None,
+            flat_f.as_ref(),
+            flat_p.as_ref(),
+        );
+        return report_failure(n, report, |i| {
+            let (a, o) = (vec3(&wi[i]), vec3(&wo[i]));
+            if usable(a) {
+                ("wo", o)
+            } else {
+                ("wi", a)
+            }
+        });
+    }
     let mut bad = Invalid::default();
     let pairs = wi.iter().zip(wo).enumerate();
     match (f_rgb, pdf) {
@@ -257,9 +278,109 @@ unsafe fn eval_pdf_impl<T: Real>(
     bad.finish(n)
 }
 
+/// The precisions the core's batch kernels take (f32: SIMD lanes; f64: the reference path).
+trait CoreBatch: Real {
+    const HAS_SAMPLE_KERNEL: bool;
+    fn eval_pdf(
+        m: &Material,
+        wi: &lacquer_core::batch::Src3<Self>,
+        wo: &lacquer_core::batch::Src3<Self>,
+        active: Option<&[u8]>,
+        f: Option<&lacquer_core::batch::Dst3<Self>>,
+        pdf: Option<&lacquer_core::batch::Dst1<Self>>,
+    ) -> lacquer_core::batch::BatchReport;
+    fn sample(
+        m: &Material,
+        wo: &lacquer_core::batch::Src3<Self>,
+        u: &lacquer_core::batch::Src3<Self>,
+        out: &mut lacquer_core::batch::SampleOut<Self>,
+    ) -> lacquer_core::batch::BatchReport;
+}
+
+impl CoreBatch for f32 {
+    const HAS_SAMPLE_KERNEL: bool = true;
+    fn eval_pdf(
+        m: &Material,
+        wi: &lacquer_core::batch::Src3<f32>,
+        wo: &lacquer_core::batch::Src3<f32>,
+        active: Option<&[u8]>,
+        f: Option<&lacquer_core::batch::Dst3<f32>>,
+        pdf: Option<&lacquer_core::batch::Dst1<f32>>,
+    ) -> lacquer_core::batch::BatchReport {
+        lacquer_core::batch::eval_pdf(m, wi, wo, active, f, pdf).expect("views sized by the adapter")
+    }
+    fn sample(
+        m: &Material,
+        wo: &lacquer_core::batch::Src3<f32>,
+        u: &lacquer_core::batch::Src3<f32>,
+        out: &mut lacquer_core::batch::SampleOut<f32>,
+    ) -> lacquer_core::batch::BatchReport {
+        lacquer_core::batch::sample(m, wo, u, None, out).expect("views sized by the adapter")
+    }
+}
+
+impl CoreBatch for f64 {
+    const HAS_SAMPLE_KERNEL: bool = false;
+    fn eval_pdf(
+        m: &Material,
+        wi: &lacquer_core::batch::Src3<f64>,
+        wo: &lacquer_core::batch::Src3<f64>,
+        active: Option<&[u8]>,
+        f: Option<&lacquer_core::batch::Dst3<f64>>,
+        pdf: Option<&lacquer_core::batch::Dst1<f64>>,
+    ) -> lacquer_core::batch::BatchReport {
+        lacquer_core::batch::eval_pdf_f64(m, wi, wo, active, f, pdf).expect("views sized by the adapter")
+    }
+    fn sample(
+        _m: &Material,
+        _wo: &lacquer_core::batch::Src3<f64>,
+        _u: &lacquer_core::batch::Src3<f64>,
+        _out: &mut lacquer_core::batch::SampleOut<f64>,
+    ) -> lacquer_core::batch::BatchReport {
+        unreachable!("f64 sampling takes the element loop (HAS_SAMPLE_KERNEL is false)")
+    }
+}
+
+/// The status and message of a core batch report, worded as the element loop words them.
+fn report_failure<T: Real>(
+    n: usize,
+    report: lacquer_core::batch::BatchReport,
+    offender: impl Fn(usize) -> (&'static str, Vec3<T>),
+) -> Result<(), Failure> {
+    let Some(i) = report.first_invalid_direction else {
+        return Ok(());
+    };
+    let (name, w) = offender(i);
+    let mut d = InvalidDetail { directions: report.invalid_directions, ..Default::default() };
+    d.first_direction = Some(format!("element {i}: {name} = [{}, {}, {}]", num(w.x), num(w.y), num(w.z)));
+    Err(d.failure(n))
+}
+
+/// [`report_failure`] for sampling: invalid `wo` directions and non-finite `u`.
+fn report_failure_sample<T: Real>(
+    n: usize,
+    report: lacquer_core::batch::BatchReport,
+    wo: impl Fn(usize) -> Vec3<T>,
+    u: impl Fn(usize) -> [T; 3],
+) -> Result<(), Failure> {
+    if report.ok() {
+        return Ok(());
+    }
+    let mut d = InvalidDetail { directions: report.invalid_directions, others: report.invalid_u, ..Default::default() };
+    if let Some(i) = report.first_invalid_direction {
+        let w = wo(i);
+        d.first_direction = Some(format!("element {i}: wo = [{}, {}, {}]", num(w.x), num(w.y), num(w.z)));
+    }
+    if let Some(i) = report.first_invalid_u {
+        let v: Vec<String> = u(i).iter().map(|&x| num(x)).collect();
+        d.first_other = Some(format!("element {i}: u = [{}]", v.join(", ")));
+    }
+    Err(d.failure(n))
+}
+
 /// Sampling over a batch; `flags` is optional.
 #[allow(clippy::too_many_arguments)]
-unsafe fn sample_impl<T: Real>(
+unsafe fn sample_impl<T: CoreBatch>(
     m: *const lq_material,
     n: usize,
     wo: *const T,
@@ -294,6 +415,21 @@ unsafe fn sample_impl<T: Real>(
     let (wi, weight, pdf) = unsafe { (wi.slice(), weight.slice(), pdf.slice()) };
     let mut flags = flags.map(|a| unsafe { a.slice() });
 
+    if spatial.uv.is_none() && T::HAS_SAMPLE_KERNEL {
+        let mut out = lacquer_core::batch::SampleOut {
+            wi: lacquer_core::batch::Dst3::interleaved(wi.as_flattened_mut()),
+            weight: lacquer_core::batch::Dst3::interleaved(weight.as_flattened_mut()),
+            pdf: lacquer_core::batch::Dst1::new(pdf.as_flattened_mut()),
+            flags: flags.map(|f| f.as_flattened_mut()),
+        };
+        let report = T::sample(
+            m,
+            &lacquer_core::batch::Src3::interleaved(wo.as_flattened()),
+            &lacquer_core::batch::Src3::interleaved(u.as_flattened()),
+            &mut out,
+        );
+        return report_failure_sample(n, report, |i| vec3(&wo[i]), |i| u[i]);
+    }
     let zero = [T::zero(); 3];
     let mut bad = Invalid::default();
     let outputs = wi.iter_mut().zip(weight.iter_mut()).zip(pdf.iter_mut());
@@ -761,4 +897,249 @@ pub unsafe extern "C" fn lq_sample_one(
         }
         bad.finish(1)
     })
+}
+
+// ---------------------------------------------------------------------------------------
+// Structure of arrays (x[], y[], z[]): what SIMD hosts (Mitsuba's JIT variants, ISPC code)
+// hold, read and written in place.
+
+/// Validated SoA arrays of one call: the component pointers as core views.
+struct SoaIn<'a> {
+    view: lacquer_core::batch::Src3<'a, f32>,
+}
+
+/// Validates three component arrays of `n` floats each (one SoA 3-vector).
+fn soa_in<'a, const N: usize>(
+    b: &mut Batch<N>,
+    name: &'static [&'static str; 3],
+    p: [*const c_float; 3],
+    n: usize,
+) -> Result<SoaIn<'a>, Failure> {
+    let x = b.input::<c_float, 1>(name[0], p[0])?;
+    let y = b.input::<c_float, 1>(name[1], p[1])?;
+    let z = b.input::<c_float, 1>(name[2], p[2])?;
+    // SAFETY: validated non-NULL and aligned; `n` elements is the caller's contract.
+    let view = unsafe {
+        lacquer_core::batch::Src3::from_raw(
+            x.slice().as_ptr().cast(),
+            y.slice().as_ptr().cast(),
+            z.slice().as_ptr().cast(),
+            1,
+            n,
+        )
+    };
+    Ok(SoaIn { view })
+}
+
+fn soa_out<const N: usize>(
+    b: &mut Batch<N>,
+    name: &'static [&'static str; 3],
+    p: [*mut c_float; 3],
+) -> Result<[*mut c_float; 3], Failure> {
+    Ok([
+        b.output::<c_float, 1>(name[0], p[0])?.ptr().cast(),
+        b.output::<c_float, 1>(name[1], p[1])?.ptr().cast(),
+        b.output::<c_float, 1>(name[2], p[2])?.ptr().cast(),
+    ])
+}
+
+/// The `active` bytes (NULL: all active).
+unsafe fn active_mask<'a>(active: *const u8, n: usize) -> Option<&'a [u8]> {
+    // SAFETY: NULL or n readable bytes (caller's contract); u8 needs no alignment.
+    (!active.is_null()).then(|| unsafe { std::slice::from_raw_parts(active, n) })
+}
+
+#[allow(clippy::too_many_arguments)]
+unsafe fn eval_pdf_soa_impl(
+    m: *const lq_material,
+    n: usize,
+    wi: [*const c_float; 3],
+    wo: [*const c_float; 3],
+    active: *const u8,
+    f: Option<[*mut c_float; 3]>,
+    pdf: Option<*mut c_float>,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract of the exported caller.
+    let m: &Material = unsafe { material(m) }?;
+    if n == 0 {
+        return Ok(());
+    }
+    let mut b = Batch::<10>::new(n);
+    let wi_v = soa_in(&mut b, &["wi_x", "wi_y", "wi_z"], wi, n)?;
+    let wo_v = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], wo, n)?;
+    let f = match f {
+        Some(p) => Some(soa_out(&mut b, &["f_r", "f_g", "f_b"], p)?),
+        None => None,
+    };
+    let pdf = match pdf {
+        Some(p) => Some(b.output::<c_float, 1>("pdf", p)?.ptr().cast::<c_float>()),
+        None => None,
+    };
+    b.check_overlaps()?;
+    // SAFETY: validated, disjoint outputs of n elements (caller's contract for lengths).
+    let f_v = f.map(|[r, g, bl]| unsafe { lacquer_core::batch::Dst3::from_raw(r, g, bl, 1, n) });
+    let pdf_v = pdf.map(|p| unsafe { lacquer_core::batch::Dst1::from_raw(p, 1, n) });
+    let active = unsafe { active_mask(active, n) };
+    let report = lacquer_core::batch::eval_pdf(m, &wi_v.view, &wo_v.view, active, f_v.as_ref(), pdf_v.as_ref())
+        .map_err(|e| Failure::invalid(e.to_string()))?;
+    let read = |p: [*const c_float; 3], i: usize| unsafe { Vec3::new(*p[0].add(i), *p[1].add(i), *p[2].add(i)) };
+    report_failure(n, report, |i| if usable(read(wi, i)) { ("wo", read(wo, i)) } else { ("wi", read(wi, i)) })
+}
+
+/// `lq_eval` on structure-of-arrays inputs and outputs: element i is
+/// `(wi_x[i], wi_y[i], wi_z[i])`, its value `(f_r[i], f_g[i], f_b[i])`. `active`: NULL (all
+/// elements) or n bytes, 0 = inactive: an inactive element is not read for validation and its
+/// outputs are set to 0. Same statuses and per-element policy as `lq_eval`. Runs the SIMD
+/// kernels (AVX-512 or AVX2 detected at run time) and, for n ≥ 32768, several threads (see
+/// `lq_set_thread_count`).
+///
+/// # Safety
+/// `m` is NULL or a live handle; every non-NULL array holds `n` values, 4-byte aligned.
+#[no_mangle]
+#[must_use]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn lq_eval_soa(
+    m: *const lq_material,
+    n: usize,
+    wi_x: *const c_float,
+    wi_y: *const c_float,
+    wi_z: *const c_float,
+    wo_x: *const c_float,
+    wo_y: *const c_float,
+    wo_z: *const c_float,
+    active: *const u8,
+    f_r: *mut c_float,
+    f_g: *mut c_float,
+    f_b: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe {
+        eval_pdf_soa_impl(m, n, [wi_x, wi_y, wi_z], [wo_x, wo_y, wo_z], active, Some([f_r, f_g, f_b]), None)
+    })
+}
+
+/// `lq_pdf` on structure-of-arrays inputs (see `lq_eval_soa`); `pdf`: n floats.
+///
+/// # Safety
+/// As `lq_eval_soa`.
+#[no_mangle]
+#[must_use]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn lq_pdf_soa(
+    m: *const lq_material,
+    n: usize,
+    wi_x: *const c_float,
+    wi_y: *const c_float,
+    wi_z: *const c_float,
+    wo_x: *const c_float,
+    wo_y: *const c_float,
+    wo_z: *const c_float,
+    active: *const u8,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe { eval_pdf_soa_impl(m, n, [wi_x, wi_y, wi_z], [wo_x, wo_y, wo_z], active, None, Some(pdf)) })
+}
+
+/// `lq_eval_pdf` on structure-of-arrays inputs (see `lq_eval_soa`).
+///
+/// # Safety
+/// As `lq_eval_soa`.
+#[no_mangle]
+#[must_use]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn lq_eval_pdf_soa(
+    m: *const lq_material,
+    n: usize,
+    wi_x: *const c_float,
+    wi_y: *const c_float,
+    wi_z: *const c_float,
+    wo_x: *const c_float,
+    wo_y: *const c_float,
+    wo_z: *const c_float,
+    active: *const u8,
+    f_r: *mut c_float,
+    f_g: *mut c_float,
+    f_b: *mut c_float,
+    pdf: *mut c_float,
+) -> lq_status {
+    guard(|| unsafe {
+        eval_pdf_soa_impl(m, n, [wi_x, wi_y, wi_z], [wo_x, wo_y, wo_z], active, Some([f_r, f_g, f_b]), Some(pdf))
+    })
+}
+
+/// `lq_sample` on structure-of-arrays inputs and outputs (see `lq_eval_soa`): `u0` picks the
+/// lobe, `u1`, `u2` the direction; writes `wi_*`, `w_*` (weight) and `pdf`; `flags` (NULL or
+/// n values) as in `lq_sample_f64`. Inactive elements get zero outputs and flags 0.
+///
+/// # Safety
+/// As `lq_eval_soa`; `flags` is NULL or holds n 4-byte aligned values.
+#[no_mangle]
+#[must_use]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn lq_sample_soa(
+    m: *const lq_material,
+    n: usize,
+    wo_x: *const c_float,
+    wo_y: *const c_float,
+    wo_z: *const c_float,
+    u0: *const c_float,
+    u1: *const c_float,
+    u2: *const c_float,
+    active: *const u8,
+    wi_x: *mut c_float,
+    wi_y: *mut c_float,
+    wi_z: *mut c_float,
+    w_r: *mut c_float,
+    w_g: *mut c_float,
+    w_b: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| unsafe {
+        let m: &Material = material(m)?;
+        if n == 0 {
+            return Ok(());
+        }
+        let mut b = Batch::<15>::new(n);
+        let wo_v = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?;
+        let u_v = soa_in(&mut b, &["u0", "u1", "u2"], [u0, u1, u2], n)?;
+        let wi_p = soa_out(&mut b, &["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z])?;
+        let w_p = soa_out(&mut b, &["w_r", "w_g", "w_b"], [w_r, w_g, w_b])?;
+        let pdf_p = b.output::<c_float, 1>("pdf", pdf)?.ptr().cast::<c_float>();
+        let flags_p = b.optional_output::<u32, 1>("flags", flags)?.map(|a| a.ptr());
+        b.check_overlaps()?;
+        let mut out = lacquer_core::batch::SampleOut {
+            wi: lacquer_core::batch::Dst3::from_raw(wi_p[0], wi_p[1], wi_p[2], 1, n),
+            weight: lacquer_core::batch::Dst3::from_raw(w_p[0], w_p[1], w_p[2], 1, n),
+            pdf: lacquer_core::batch::Dst1::from_raw(pdf_p, 1, n),
+            flags: flags_p.map(|p| std::slice::from_raw_parts_mut(p.cast::<u32>(), n)),
+        };
+        let report = lacquer_core::batch::sample(m, &wo_v.view, &u_v.view, active_mask(active, n), &mut out)
+            .map_err(|e| Failure::invalid(e.to_string()))?;
+        let wo3 = [wo_x, wo_y, wo_z];
+        let u3 = [u0, u1, u2];
+        report_failure_sample(
+            n,
+            report,
+            |i| Vec3::new(*wo3[0].add(i), *wo3[1].add(i), *wo3[2].add(i)),
+            |i| [*u3[0].add(i), *u3[1].add(i), *u3[2].add(i)],
+        )
+    })
+}
+
+/// Limits the threads a large batch call (n ≥ 32768) uses: 1 runs every call on the calling
+/// thread, 0 (the default) uses every core. Process-wide; results do not depend on it.
+#[no_mangle]
+pub extern "C" fn lq_set_thread_count(n: u32) {
+    lacquer_core::batch::set_thread_count(n as usize);
+}
+
+/// The instruction set the batch kernels use on this CPU: "avx512", "avx2" or "scalar"
+/// (static string). `LACQUER_SIMD=scalar|avx2` in the environment lowers it.
+#[no_mangle]
+pub extern "C" fn lq_simd_level() -> *const std::ffi::c_char {
+    match lacquer_core::batch::simd_level() {
+        lacquer_core::batch::SimdLevel::Avx512 => c"avx512".as_ptr(),
+        lacquer_core::batch::SimdLevel::Avx2 => c"avx2".as_ptr(),
+        lacquer_core::batch::SimdLevel::Scalar => c"scalar".as_ptr(),
+    }
 }

@@ -27,6 +27,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod batch;
+pub mod bench;
 pub mod bxdf;
 pub mod check;
 pub mod color;

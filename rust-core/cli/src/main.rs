@@ -6,6 +6,7 @@ use lacquer::{models, presets, Material};
 use serde_json::{json, Value};
 use std::process::ExitCode;
 
+mod bench;
 mod render;
 
 #[derive(Parser)]
@@ -41,6 +42,9 @@ enum Command {
     Fit(FitArgs),
     /// Fit the Blender node group `Lacquer Coated Paint` (mean lobe) to a coated_paint material.
     FitNodeGroup(FitNodeGroupArgs),
+    /// Measure ns per element of eval, pdf and sample (batch SIMD/scalar, 1 and all threads,
+    /// scalar calls in f32 and f64): `lacquer bench --preset gold_flake_8`.
+    Bench(bench::BenchArgs),
 }
 
 #[derive(Args)]
@@ -165,6 +169,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(*args),
         Command::Fit(args) => run_fit(args),
         Command::FitNodeGroup(args) => run_fit_node_group(args),
+        Command::Bench(args) => bench::run(args),
     }
 }
 
