@@ -332,63 +332,84 @@ impl BatchReport {
     }
 }
 
+/// Lanes `start..start + width` of one component (missing lanes of a short tail hold `pad`).
+#[inline(always)]
+unsafe fn load_comp<L: Lanes>(p: *const L::Elem, stride: usize, start: usize, width: usize, pad: L::Elem) -> L {
+    if width == L::WIDTH && stride == 1 {
+        // SAFETY: elements start..start+WIDTH exist (caller) and are contiguous.
+        unsafe { L::load_ptr(p.add(start)) }
+    } else {
+        let mut buf = [pad; 16];
+        for (j, b) in buf.iter_mut().enumerate().take(width) {
+            // SAFETY: only lanes below `width` are read.
+            *b = unsafe { *p.add((start + j) * stride) };
+        }
+        // SAFETY: WIDTH ≤ 16 values in the buffer.
+        unsafe { L::load_ptr(buf.as_ptr()) }
+    }
+}
+
 /// Lanes `start..start + width` of a 3-vector view (missing lanes of a short tail hold `pad`).
 #[inline(always)]
 unsafe fn load3<L: Lanes>(s: &Src3<L::Elem>, start: usize, width: usize, pad: [f64; 3]) -> Vec3<L> {
-    let comp = |c: usize| -> L {
-        let p = s.p[c];
-        if width == L::WIDTH && s.stride == 1 {
-            // SAFETY: elements start..start+WIDTH exist (caller) and are contiguous.
-            unsafe { L::load_ptr(p.add(start)) }
-        } else {
-            let pad = <L::Elem as Real>::of(pad[c]);
-            // SAFETY: only lanes below `width` are read.
-            L::from_fn(|j| if j < width { unsafe { *p.add((start + j) * s.stride) } } else { pad })
-        }
-    };
-    Vec3::new(comp(0), comp(1), comp(2))
+    let of = <L::Elem as Real>::of;
+    // SAFETY: the caller guarantees start + width ≤ n.
+    unsafe {
+        Vec3::new(
+            load_comp::<L>(s.p[0], s.stride, start, width, of(pad[0])),
+            load_comp::<L>(s.p[1], s.stride, start, width, of(pad[1])),
+            load_comp::<L>(s.p[2], s.stride, start, width, of(pad[2])),
+        )
+    }
 }
 
 /// Stores lanes `start..start + width` into a 3-component view.
 #[inline(always)]
 unsafe fn store3<L: Lanes>(d: &Dst3<L::Elem>, start: usize, width: usize, v: [L; 3]) {
-    for (c, comp) in v.into_iter().enumerate() {
-        let p = d.p[c];
-        if width == L::WIDTH && d.stride == 1 {
-            // SAFETY: as in load3.
-            unsafe { comp.store_ptr(p.add(start)) }
-        } else {
-            for j in 0..width {
-                // SAFETY: lane j < width exists.
-                unsafe { *p.add((start + j) * d.stride) = comp.lane(j) }
-            }
+    // SAFETY: as in load3.
+    unsafe {
+        store_comp(d.p[0], d.stride, start, width, v[0]);
+        store_comp(d.p[1], d.stride, start, width, v[1]);
+        store_comp(d.p[2], d.stride, start, width, v[2]);
+    }
+}
+
+#[inline(always)]
+unsafe fn store_comp<L: Lanes>(p: *mut L::Elem, stride: usize, start: usize, width: usize, v: L) {
+    if width == L::WIDTH && stride == 1 {
+        // SAFETY: as in load3.
+        unsafe { v.store_ptr(p.add(start)) }
+    } else {
+        let mut buf = [<L::Elem as Real>::of(0.0); 16];
+        // SAFETY: WIDTH ≤ 16.
+        unsafe { v.store_ptr(buf.as_mut_ptr()) };
+        for (j, b) in buf.iter().enumerate().take(width) {
+            // SAFETY: lane j < width exists.
+            unsafe { *p.add((start + j) * stride) = *b }
         }
     }
 }
 
 #[inline(always)]
 unsafe fn store1<L: Lanes>(d: &Dst1<L::Elem>, start: usize, width: usize, v: L) {
-    if width == L::WIDTH && d.stride == 1 {
-        // SAFETY: as in load3.
-        unsafe { v.store_ptr(d.p.add(start)) }
-    } else {
-        for j in 0..width {
-            // SAFETY: lane j < width exists.
-            unsafe { *d.p.add((start + j) * d.stride) = v.lane(j) }
-        }
-    }
+    // SAFETY: as in load3.
+    unsafe { store_comp(d.p, d.stride, start, width, v) }
 }
 
 /// Active lanes: all below `width`, and those whose `active` byte is non-zero.
 #[inline(always)]
 fn active_lanes<L: Lanes>(active: Option<&[u8]>, start: usize, width: usize) -> L::Mask {
-    let one = <L::Elem as Real>::of(1.0);
-    let zero = <L::Elem as Real>::of(0.0);
-    let flags = match active {
-        None if width == L::WIDTH => return L::Mask::splat(true),
-        None => L::from_fn(|j| if j < width { one } else { zero }),
-        Some(a) => L::from_fn(|j| if j < width && a[start + j] != 0 { one } else { zero }),
-    };
+    if active.is_none() && width == L::WIDTH {
+        return L::Mask::splat(true);
+    }
+    let mut buf = [<L::Elem as Real>::of(0.0); 16];
+    for (j, b) in buf.iter_mut().enumerate().take(width) {
+        if active.is_none_or(|a| a[start + j] != 0) {
+            *b = <L::Elem as Real>::of(1.0);
+        }
+    }
+    // SAFETY: WIDTH ≤ 16 values in the buffer.
+    let flags = unsafe { L::load_ptr(buf.as_ptr()) };
     lanes::gt(flags, L::c(0.5))
 }
 
@@ -400,6 +421,9 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
     let usable = lanes::gt(l2, L::c(0.0)) & lanes::is_finite(l2);
     let eps = <L::Elem as num_traits::Float>::epsilon();
     let off_unit = lanes::gt(lanes::abs(l2 - L::c(1.0)), L::c(64.0) * L::splat(eps));
+    if !off_unit.any() {
+        return (w, usable); // the common case: unit directions cost no square root
+    }
     let scale = lanes::select(off_unit, L::c(1.0) / lanes::sqrt(l2), L::c(1.0));
     (w * scale, usable)
 }
@@ -485,8 +509,9 @@ fn sample_kernel<L: Lanes>(
         if !((o_ok & u_ok) | !on).all() {
             report.record(start, width, on & !o_ok, on & !u_ok);
         }
-        let clamp_u = |x: L| lanes::clamp(x, L::c(0.0), L::splat(below_one));
-        let s: LaneSample<L> = model.sample_lanes(o, [clamp_u(uu.x), clamp_u(uu.y), clamp_u(uu.z)]);
+        let (lo, hi) = (L::c(0.0), L::splat(below_one));
+        let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
+        let s: LaneSample<L> = model.sample_lanes(o, uc);
         let inputs_ok = on & o_ok & u_ok;
         let good = inputs_ok & s.valid;
         let wi = Vec3::select(good, s.wi, Vec3::zero());

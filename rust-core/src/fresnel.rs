@@ -13,19 +13,19 @@ use crate::real::Real;
 /// `cos_i` is the cosine of the incident angle on the side the light comes from;
 /// `eta` = n_transmitted / n_incident. Returns 1 under total internal reflection.
 /// A negative `cos_i` means the light arrives from the other side (eta is inverted).
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn dielectric<T: Real>(cos_i: T, eta: T) -> T {
-    let (cos_i, eta) = if cos_i < T::zero() { (-cos_i, T::one() / eta) } else { (cos_i, eta) };
-    let cos_i = cos_i.min(T::one());
-    let sin2_t = (T::one() - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= T::one() {
-        return T::one();
-    }
-    let cos_t = (T::one() - sin2_t).safe_sqrt();
+pub fn dielectric<T: Lanes>(cos_i: T, eta: T) -> T {
+    let one = T::c(1.0);
+    let inside = lanes::lt(cos_i, T::c(0.0));
+    let eta = lanes::select(inside, one / eta, eta);
+    let cos_i = lanes::min(lanes::abs(cos_i), one);
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    let tir = lanes::ge(sin2_t, one);
+    let cos_t = lanes::safe_sqrt(one - sin2_t);
     let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    T::of(0.5) * (r_s * r_s + r_p * r_p)
+    lanes::select(tir, one, T::c(0.5) * (r_s * r_s + r_p * r_p))
 }
 
 /// Cosine of the refracted direction for a dielectric (positive), or `None` under total
@@ -33,34 +33,40 @@ pub fn dielectric<T: Real>(cos_i: T, eta: T) -> T {
 #[inline]
 #[must_use]
 pub fn refracted_cos<T: Real>(cos_i: T, eta: T) -> Option<T> {
-    let sin2_t = (T::one() - cos_i * cos_i).max(T::zero()) / (eta * eta);
-    if sin2_t >= T::one() {
-        None
-    } else {
-        Some((T::one() - sin2_t).sqrt())
-    }
+    let (cos_t, refracts) = refracted_cos_masked(cos_i, eta);
+    refracts.then_some(cos_t)
+}
+
+/// [`refracted_cos`] per lane: the cosine and where it exists (no total internal reflection).
+#[inline(always)]
+#[must_use]
+pub fn refracted_cos_masked<T: Lanes>(cos_i: T, eta: T) -> (T, T::Mask) {
+    let one = T::c(1.0);
+    let sin2_t = lanes::max(one - cos_i * cos_i, T::c(0.0)) / (eta * eta);
+    (lanes::safe_sqrt(one - sin2_t), lanes::lt(sin2_t, one))
 }
 
 /// Normal-incidence reflectance `((η−1)/(η+1))²` of a dielectric.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn dielectric_f0<T: Real>(eta: T) -> T {
-    ((eta - T::one()) / (eta + T::one())).sqr()
+pub fn dielectric_f0<T: Lanes>(eta: T) -> T {
+    lanes::sqr((eta - T::c(1.0)) / (eta + T::c(1.0)))
 }
 
 /// Schlick's approximation `F0 + (1 − F0)(1 − cos)^5`.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn schlick<T: Real>(cos_i: T, f0: T) -> T {
-    let m = (T::one() - cos_i.clamp_to(T::zero(), T::one())).max(T::zero());
+pub fn schlick<T: Lanes>(cos_i: T, f0: T) -> T {
+    let one = T::c(1.0);
+    let m = lanes::max(one - lanes::clamp(cos_i, T::c(0.0), one), T::c(0.0));
     let m2 = m * m;
-    f0 + (T::one() - f0) * m2 * m2 * m
+    f0 + (one - f0) * m2 * m2 * m
 }
 
 /// Schlick's approximation per channel.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn schlick_rgb<T: Real>(cos_i: T, f0: Rgb<T>) -> Rgb<T> {
+pub fn schlick_rgb<T: Lanes>(cos_i: T, f0: Rgb<T>) -> Rgb<T> {
     f0.map(|f| schlick(cos_i, f))
 }
 
@@ -77,12 +83,13 @@ pub fn ior_from_f0(f0: f64) -> f64 {
 /// 2021; as in Blender's Cycles and OpenPBR): Schlick's curve minus a term `b·cos·(1 − cos)⁶`
 /// that bends it near 82°, clamped to `[0, 1]`:
 /// `F(cos) = F0 + (1 − F0)(1 − cos)⁵ − b·cos·(1 − cos)⁶`. See [`f82_tint_b`] for `b`.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn f82<T: Real>(cos_i: T, f0: T, b: T) -> T {
-    let s = (T::one() - cos_i).clamp_to(T::zero(), T::one());
-    let s5 = s.sqr().sqr() * s;
-    (f0 + (T::one() - f0) * s5 - b * cos_i * s5 * s).clamp_to(T::zero(), T::one())
+pub fn f82<T: Lanes>(cos_i: T, f0: T, b: T) -> T {
+    let one = T::c(1.0);
+    let s = lanes::clamp(one - cos_i, T::c(0.0), one);
+    let s5 = lanes::sqr(lanes::sqr(s)) * s;
+    lanes::clamp(f0 + (one - f0) * s5 - b * cos_i * s5 * s, T::c(0.0), one)
 }
 
 /// The `b` of [`f82`] for which the curve at `cos θ = 1/7` (≈ 82°) is Schlick's value there
@@ -104,6 +111,7 @@ pub fn f82_tint_b(f0: f64, tint: f64) -> f64 {
 /// `t = η² − k² − sin²θ`, `a² + b² = √(t² + 4η²k²)` and `a² = (a² + b² + t)/2`,
 /// `R_s = (a²+b² + cos²θ − 2a cos θ)/(a²+b² + cos²θ + 2a cos θ)` and
 /// `R_p = R_s (a²+b² cos²θ + sin⁴θ − 2a cos θ sin²θ)/(a²+b² cos²θ + sin⁴θ + 2a cos θ sin²θ)`.
+/// Since `R_p = R_s (term3 − term4)/(term3 + term4)`, the mean is `R_s term3/(term3 + term4)`.
 /// One square root pair per channel instead of complex arithmetic; `a²` is taken as
 /// `2η²k²/(a²+b² − t)` when `t < 0`, which avoids the cancellation of `a²+b² + t` for metals
 /// (`k ≫ η`; in f32 it would cost ~3e-5 relative on gold).
@@ -126,11 +134,10 @@ pub fn conductor<T: Lanes>(cos_i: T, eta: T, k: T) -> T {
     let a = lanes::safe_sqrt(a2);
     let term1 = a2_plus_b2 + c2;
     let term2 = T::c(2.0) * c * a;
-    let r_s = (term1 - term2) / (term1 + term2);
     let term3 = a2_plus_b2 * c2 + s2 * s2;
     let term4 = term2 * s2;
-    let r_p = r_s * (term3 - term4) / (term3 + term4);
-    T::c(0.5) * (r_s + r_p)
+    // (R_s + R_p)/2 = R_s · term3/(term3 + term4): one division instead of two.
+    (term1 - term2) * term3 / ((term1 + term2) * (term3 + term4))
 }
 
 /// [`conductor`] per RGB channel.

@@ -78,7 +78,7 @@ pub struct Microfacet<T> {
 
 impl<T: Lanes> Microfacet<T> {
     /// Builds a distribution; roughness values are taken as given (validated by the caller).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn new(kind: DistributionKind, alpha_x: T, alpha_y: T) -> Self {
         Self { kind, alpha_x, alpha_y }
@@ -129,7 +129,17 @@ impl<T: Lanes> Microfacet<T> {
     #[must_use]
     pub fn g1(&self, w: Vec3<T>, m: Vec3<T>) -> T {
         let front = gt(w.dot(m) * cos_theta(w), T::c(0.0));
-        keep(front, T::c(1.0) / (T::c(1.0) + self.lambda(w)))
+        let g1 = match self.kind {
+            // 1/(1 + Λ) = 2/(1 + √(1 + α²tan²θ)) = 2 cos θ/(cos θ + √(cos²θ + α²sin²θ)): one
+            // division, no cancellation; 0 at and below the horizon.
+            DistributionKind::Ggx => {
+                let z = w.z;
+                let a2_sin2 = sqr(self.alpha_x * w.x) + sqr(self.alpha_y * w.y);
+                keep(gt(z, T::c(0.0)), T::c(2.0) * z / (z + lanes::sqrt(z * z + a2_sin2)))
+            }
+            DistributionKind::Beckmann => T::c(1.0) / (T::c(1.0) + self.lambda(w)),
+        };
+        keep(front, g1)
     }
 
     /// Bidirectional masking-shadowing for the chosen combination.
@@ -368,7 +378,7 @@ fn beckmann_visible_slope(cot: f64, u: f64) -> f64 {
 
 /// The V-groove masking-shadowing of Torrance-Sparrow / Cook-Torrance:
 /// `min(1, 2(n·h)(n·wo)/(wo·h), 2(n·h)(n·wi)/(wo·h))`.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn g_vgroove<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
     let oh = wo.dot(h);
@@ -379,15 +389,11 @@ pub fn g_vgroove<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
 }
 
 /// Jacobian of the reflection half-vector map: `dω_h/dω_i = 1/(4 |wo·h|)`.
-#[inline]
+#[inline(always)]
 #[must_use]
-pub fn reflection_jacobian<T: Real>(wo: Vec3<T>, h: Vec3<T>) -> T {
-    let oh = wo.dot(h).abs();
-    if oh > T::zero() {
-        T::one() / (T::of(4.0) * oh)
-    } else {
-        T::zero()
-    }
+pub fn reflection_jacobian<T: Lanes>(wo: Vec3<T>, h: Vec3<T>) -> T {
+    let oh = lanes::abs(wo.dot(h));
+    keep(gt(oh, T::c(0.0)), T::c(1.0) / (T::c(4.0) * oh))
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Small tables of precomputed functions of `cos θ`, linearly interpolated.
 
+use crate::lanes::{self, Lanes};
 use crate::real::Real;
 
 /// An RGB function of `μ = cos θ ∈ [0, 1]` sampled at evenly spaced nodes.
@@ -39,6 +40,25 @@ impl MuTable {
         let t = x - i as f64;
         let (a, b) = (self.values[i], self.values[i + 1]);
         [0, 1, 2].map(|c| T::of(a[c] + (b[c] - a[c]) * t))
+    }
+
+    /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
+    /// table values gathered one lane at a time).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
+        let last = self.values.len() - 1;
+        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last as f64);
+        let i = lanes::min(x.floor_(), L::c((last - 1) as f64));
+        let t = x - i;
+        let index = |j: usize| (i.lane(j).f64() as usize).min(last - 1);
+        let mut out = [L::c(0.0); 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let a = L::from_fn(|j| <L::Elem as Real>::of(self.values[index(j)][c]));
+            let b = L::from_fn(|j| <L::Elem as Real>::of(self.values[index(j) + 1][c]));
+            *o = a + (b - a) * t;
+        }
+        out
     }
 
     /// `2 ∫₀¹ f(μ) μ dμ` per channel (the cosine-weighted hemispherical average), by the

@@ -249,7 +249,10 @@ impl Lanes for F32x8 {
     }
     #[inline(always)]
     fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
-        let a: [f32; 8] = std::array::from_fn(&mut f);
+        let mut a = [0.0f32; 8];
+        for (i, v) in a.iter_mut().enumerate() {
+            *v = f(i);
+        }
         Self::load(&a)
     }
     #[inline(always)]
@@ -346,7 +349,10 @@ impl Lanes for F32x16 {
     }
     #[inline(always)]
     fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
-        let a: [f32; 16] = std::array::from_fn(&mut f);
+        let mut a = [0.0f32; 16];
+        for (i, v) in a.iter_mut().enumerate() {
+            *v = f(i);
+        }
         Self::load(&a)
     }
     #[inline(always)]

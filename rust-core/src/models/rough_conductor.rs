@@ -64,7 +64,7 @@ use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, Claims, LaneBxdf, Lan
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
-use crate::lanes::{self, Lanes};
+use crate::lanes::{self, Lanes, Mask};
 use crate::fresnel::{conductor, conductor_rgb, metal};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
@@ -258,6 +258,26 @@ impl LaneBxdf for RoughConductor {
 
     #[inline(always)]
     fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        if self.ms.is_none() && self.sample_visible && self.masking == MaskingKind::Separable {
+            // Visible normals with separable masking: f cos θi / pdf reduces to F(wo·m) G1(wi)
+            // (Heitz & d'Eon 2014), evaluated at the sampled normal m itself; the density is
+            // G1(wo) D(m)/(4 cos θo), as `pdf` gives.
+            let mf = self.microfacet::<L>();
+            let m = mf.sample_m(wo, u[1], u[2], true);
+            let wi = crate::frame::reflect(wo, m);
+            let om = wo.dot(m);
+            let f = conductor_rgb(om, Rgb::from_array(self.eta), Rgb::from_array(self.k));
+            let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
+            let pdf = mf.g1(wo, m) * mf.d(m) / (L::c(4.0) * wo.z);
+            let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
+            let valid = lanes::gt(wi.z, L::c(0.0))
+                & wi.finite_mask()
+                & lanes::gt(om, L::c(0.0))
+                & lanes::gt(pdf, L::c(0.0))
+                & lanes::is_finite(pdf)
+                & finite;
+            return LaneSample { wi, weight, pdf, valid, delta: L::Mask::splat(false) };
+        }
         let (spec_wi, spec_ok) =
             self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], self.sample_visible);
         let (wi, valid) = if self.ms.is_none() {
