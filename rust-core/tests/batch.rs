@@ -97,8 +97,8 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
                 let a = Vec3::new(wi[i][0], wi[i][1], wi[i][2]);
                 let b = Vec3::new(wo[i][0], wo[i][1], wo[i][2]);
                 let got = [f[0][i], f[1][i], f[2][i]];
-                let bad = !(a.length_squared() > 0.0 && a.length_squared().is_finite())
-                    || !(b.length_squared() > 0.0 && b.length_squared().is_finite());
+                let usable = |w: Vec3<f32>| w.length_squared() > 0.0 && w.length_squared().is_finite();
+                let bad = !(usable(a) && usable(b));
                 if active[i] == 0 || bad {
                     invalid += usize::from(active[i] != 0);
                     assert_eq!((got, pdf[i]), ([0.0; 3], 0.0), "{json} {level:?} element {i} (inactive or invalid)");
