@@ -317,13 +317,14 @@ impl PlasticTables {
         const MAX_WIDTH: usize = 16;
         assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c((RES - 1) as f64);
-        let i = lanes::min(x.floor_(), L::c((RES - 2) as f64));
-        let w = x - i;
         let mut index = [0usize; MAX_WIDTH];
         for (j, k) in index.iter_mut().enumerate().take(L::WIDTH) {
-            // In [0, RES − 2] (NaN, which unit directions never give, maps to 0).
-            *k = (i.lane(j).f64() as usize).min(RES - 2);
+            // x ≥ 0, so truncation is the floor (and no libm `floor` call on the scalar
+            // paths, which baseline x86-64 has no instruction for). NaN, which unit
+            // directions never give, maps to 0.
+            *k = (x.lane(j).f64() as usize).min(RES - 2);
         }
+        let w = x - L::from_fn(|j| <L::Elem as Real>::of(index[j] as f64));
         let v0 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j]]));
         let v1 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j] + 1]));
         v0 + (v1 - v0) * w
