@@ -20,6 +20,12 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.4, "alpha_v": 0.4, "multiple_scattering": true, "material": "Al"}"#,
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.3, "alpha_v": 0.3, "sample_visible": false}"#,
     r#"{"model": "ward", "alpha_x": 0.2, "alpha_y": 0.3}"#,
+    r#"{"model": "rough_plastic", "distribution": "ggx", "alpha": 0.2, "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": [0.2, 0.4, 0.7]}"#,
+    r#"{"model": "rough_plastic", "alpha": 0.3, "diffuse_reflectance": [0.9, 0.3, 0.05], "nonlinear": true}"#,
+    r#"{"model": "rough_plastic", "distribution": "ggx", "alpha": 0.05, "int_ior": 1.0, "ext_ior": 1.5, "sample_visible": false}"#,
+    r#"{"model": "cook_torrance"}"#,
+    r#"{"model": "cook_torrance", "kd": 0.3, "ks": 0.7, "alpha": 0.2, "masking": "smith_separable", "eta": [0.2, 0.4, 1.4], "k": [3.9, 2.4, 1.6]}"#,
+    r#"{"model": "cook_torrance", "kd": 0.0, "ks": 1.0, "alpha": 0.5, "distribution": "beckmann", "masking": "vgroove", "eta": 0.2, "k": 5.0, "multiple_scattering": true}"#,
 ];
 
 /// Random directions (both hemispheres, not unit), hard cases (grazing to 1e-7, normal, wi = ±wo,
