@@ -11,7 +11,7 @@ use std::process::ExitCode;
 lacquer bench --preset gold_flake_8\n  \
 lacquer bench --material '{\"model\": \"rough_conductor\", \"distribution\": \"ggx\", \"alpha_u\": 0.2, \"alpha_v\": 0.2}'\n  \
 lacquer bench --model lambert --n 100000 --json\n  \
-lacquer bench --all-models --quick")]
+lacquer bench --all --quick\n  lacquer bench --report\n  lacquer bench --preset gold_flake_8 --max-error 1e-3")]
 pub struct BenchArgs {
     /// A registered model with its defaults.
     #[arg(long)]
@@ -23,7 +23,7 @@ pub struct BenchArgs {
     #[arg(long)]
     material: Option<String>,
     /// Every registered model with its defaults.
-    #[arg(long)]
+    #[arg(long = "all", alias = "all-models")]
     all_models: bool,
     /// Direction pairs per batch call.
     #[arg(long, default_value_t = 1 << 20)]
@@ -66,7 +66,7 @@ fn materials(args: &BenchArgs) -> Result<Vec<(String, Material)>, String> {
         }
     }
     if out.is_empty() {
-        return Err("give --model, --preset, --material or --all-models".into());
+        return Err("give --model, --preset, --material or --all".into());
     }
     Ok(out)
 }
