@@ -66,6 +66,7 @@
 //! SIGGRAPH 2017 course *Physically Based Shading in Theory and Practice*.
 
 use crate::frame::reflect;
+use crate::lanes::{self, Lanes};
 use crate::math::Vec3;
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::quadrature::gauss_legendre;
@@ -891,6 +892,58 @@ impl AlbedoTable {
         let (k, fp) = split(p, self.n_phi);
         let (a, b) = (self.row(k, mu), self.row(k + 1, mu));
         a + (b - a) * fp
+    }
+
+    /// True when `self` and `o` are isotropic tables on the same `μ` nodes (tables of the same
+    /// roughness): a cell found with [`AlbedoTable::cell_lanes`] of one serves the other.
+    #[must_use]
+    pub fn same_cells(&self, o: &Self) -> bool {
+        self.n_phi == 1 && o.n_phi == 1 && self.eps == o.eps && self.inv_log_span == o.inv_log_span
+    }
+
+    /// The cell of `cos θ = μ` in an isotropic table, per lane: the node index (as a float)
+    /// and the fraction in the cell, as [`AlbedoTable::loss`] finds them. The logarithm of
+    /// the node spacing has no lane form: it runs one lane at a time (one per roughness and
+    /// call, shared by every table on the same nodes).
+    #[inline(always)]
+    #[must_use]
+    pub fn cell_lanes<L: Lanes>(&self, mu: L) -> (L, L) {
+        debug_assert_eq!(self.n_phi, 1, "cell_lanes needs an isotropic table");
+        let mu = lanes::clamp(mu, L::c(0.0), L::c(1.0));
+        let (eps, span) = (L::Elem::of(self.eps[0]), L::Elem::of(self.inv_log_span[0]));
+        let s = L::from_fn(|i| num_traits::Float::ln_1p(mu.lane(i) / eps) * span);
+        let x = lanes::clamp(s * L::c((N_MU - 1) as f64), L::c(0.0), L::c((N_MU - 1) as f64));
+        let j = lanes::min(x.floor_(), L::c((N_MU - 2) as f64));
+        (j, x - j)
+    }
+
+    /// `1 − E` of an isotropic table at a cell of [`AlbedoTable::cell_lanes`] (of this table
+    /// or one with [`AlbedoTable::same_cells`]): the node values gathered per lane, the cubic
+    /// Hermite interpolation in lanes, as [`AlbedoTable::loss`].
+    #[inline(always)]
+    #[must_use]
+    pub fn loss_at_lanes<L: Lanes>(&self, (j, f): (L, L)) -> L {
+        const MAX_WIDTH: usize = 16;
+        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let mut idx = [0usize; MAX_WIDTH];
+        for (k, i) in idx.iter_mut().enumerate().take(L::WIDTH) {
+            *i = (j.lane(k).f64() as usize).min(N_MU - 2);
+        }
+        let h = L::c(1.0 / (N_MU - 1) as f64);
+        let y0 = L::from_fn(|k| L::Elem::of(self.loss[idx[k]]));
+        let y1 = L::from_fn(|k| L::Elem::of(self.loss[idx[k] + 1]));
+        let d0 = L::from_fn(|k| L::Elem::of(self.slope[idx[k]])) * h;
+        let d1 = L::from_fn(|k| L::Elem::of(self.slope[idx[k] + 1])) * h;
+        // Cubic Hermite basis.
+        let f2 = f * f;
+        let f3 = f2 * f;
+        let two = L::c(2.0);
+        let three = L::c(3.0);
+        let h00 = two * f3 - three * f2 + L::c(1.0);
+        let h10 = f3 - two * f2 + f;
+        let h01 = three * f2 - two * f3;
+        let h11 = f3 - f2;
+        lanes::clamp(h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1, L::c(0.0), L::c(1.0))
     }
 
     /// `E(w)` interpolated from the table.

@@ -19,6 +19,10 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "rough_conductor", "alpha_u": 0.3, "alpha_v": 0.3, "material": "Ag"}"#,
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.4, "alpha_v": 0.4, "multiple_scattering": true, "material": "Al"}"#,
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.3, "alpha_v": 0.3, "sample_visible": false}"#,
+    r#"{"model": "principled", "base_color": [0.8, 0.3, 0.2], "roughness": 0.5, "metallic": 0.5}"#,
+    r#"{"model": "principled", "roughness": 0.45, "metallic": 0.3, "base_color": [0.1, 0.2, 0.6], "thin_film_thickness": 350, "thin_film_ior": 1.6, "coat_weight": 0.5, "coat_roughness": 0.5, "coat_tint": [0.8, 0.9, 1.0]}"#,
+    r#"{"model": "principled", "roughness": 0, "metallic": 0.5, "base_color": [0.8, 0.2, 0.1], "coat_weight": 1, "coat_roughness": 0.2}"#,
+    r#"{"model": "principled", "metallic": 1, "roughness": 0.3, "base_color": [0.95, 0.64, 0.54], "specular_tint": [0.9, 0.1, 0.0], "coat_weight": 1, "coat_roughness": 0, "coat_ior": 1.8, "coat_tint": [0.0, 0.5, 1.0]}"#,
     r#"{"model": "ward", "alpha_x": 0.2, "alpha_y": 0.3}"#,
 ];
 
