@@ -584,17 +584,8 @@ impl Principled {
                 let inv = one / L::c(p.coat_ior);
                 let cos_t = lanes::safe_sqrt(one - inv * inv * (one - mu_o * mu_o));
                 let depth = one / cos_t;
-                let tint = |t: f64| -> L {
-                    let tr = if t == 1.0 {
-                        one
-                    } else if t > 0.0 {
-                        lanes::exp(depth * L::c(t.ln()))
-                    } else {
-                        zero
-                    };
-                    one - cw + cw * tr
-                };
-                w = w * Rgb::new(tint(p.coat_tint[0]), tint(p.coat_tint[1]), tint(p.coat_tint[2]));
+                let t = p.coat_tint;
+                w = w * Rgb::new(tinted(t[0], depth, cw), tinted(t[1], depth, cw), tinted(t[2], depth, cw));
             }
         }
         if let Some(metal) = &self.metal {
@@ -674,6 +665,19 @@ impl<L: Lanes> Layers<L> {
         }
         albedo
     }
+}
+
+/// The coat's tint factor `1 − cw + cw·t^depth` of one channel (`t^depth` as `e^(depth ln t)`).
+#[inline(always)]
+fn tinted<L: Lanes>(t: f64, depth: L, cw: L) -> L {
+    let tr = if t == 1.0 {
+        L::c(1.0)
+    } else if t > 0.0 {
+        lanes::exp(depth * L::c(t.ln()))
+    } else {
+        L::c(0.0)
+    };
+    L::c(1.0) - cw + cw * tr
 }
 
 /// Mean of the three channels (as [`Rgb::average`]), per lane.
