@@ -66,6 +66,7 @@
 //! SIGGRAPH 2017 course *Physically Based Shading in Theory and Practice*.
 
 use crate::frame::reflect;
+use crate::lanes::{self, Lanes};
 use crate::math::Vec3;
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::quadrature::gauss_legendre;
@@ -893,6 +894,57 @@ impl AlbedoTable {
         a + (b - a) * fp
     }
 
+    /// True when `self` and `o` are isotropic tables on the same `μ` nodes (tables of the same
+    /// roughness): a cell found with [`AlbedoTable::cell_lanes`] of one serves the other.
+    #[must_use]
+    pub fn same_cells(&self, o: &Self) -> bool {
+        self.n_phi == 1 && o.n_phi == 1 && self.eps == o.eps && self.inv_log_span == o.inv_log_span
+    }
+
+    /// The cell of `cos θ = μ` in an isotropic table, per lane: the node index (as a float)
+    /// and the fraction in the cell, as [`AlbedoTable::loss`] finds them (one per roughness
+    /// and call, shared by every table on the same nodes).
+    #[inline(always)]
+    #[must_use]
+    pub fn cell_lanes<L: Lanes>(&self, mu: L) -> (L, L) {
+        debug_assert_eq!(self.n_phi, 1, "cell_lanes needs an isotropic table");
+        let mu = lanes::clamp(mu, L::c(0.0), L::c(1.0));
+        let (eps, span) = (L::Elem::of(self.eps[0]), L::Elem::of(self.inv_log_span[0]));
+        let s = ln_1p_lanes(mu / L::splat(eps)) * L::splat(span);
+        let x = lanes::clamp(s * L::c((N_MU - 1) as f64), L::c(0.0), L::c((N_MU - 1) as f64));
+        let j = lanes::min(x.floor_(), L::c((N_MU - 2) as f64));
+        (j, x - j)
+    }
+
+    /// `1 − E` of an isotropic table at a cell of [`AlbedoTable::cell_lanes`] (of this table
+    /// or one with [`AlbedoTable::same_cells`]): the node values gathered per lane, the cubic
+    /// Hermite interpolation in lanes, as [`AlbedoTable::loss`].
+    #[inline(always)]
+    #[must_use]
+    pub fn loss_at_lanes<L: Lanes>(&self, (j, f): (L, L)) -> L {
+        const MAX_WIDTH: usize = 16;
+        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let mut idx = [0usize; MAX_WIDTH];
+        for (k, i) in idx.iter_mut().enumerate().take(L::WIDTH) {
+            *i = (j.lane(k).f64() as usize).min(N_MU - 2);
+        }
+        let h = L::c(1.0 / (N_MU - 1) as f64);
+        let y0 = L::from_fn(|k| L::Elem::of(self.loss[idx[k]]));
+        let y1 = L::from_fn(|k| L::Elem::of(self.loss[idx[k] + 1]));
+        let d0 = L::from_fn(|k| L::Elem::of(self.slope[idx[k]])) * h;
+        let d1 = L::from_fn(|k| L::Elem::of(self.slope[idx[k] + 1])) * h;
+        // Cubic Hermite basis.
+        let f2 = f * f;
+        let f3 = f2 * f;
+        let two = L::c(2.0);
+        let three = L::c(3.0);
+        let h00 = two * f3 - three * f2 + L::c(1.0);
+        let h10 = f3 - two * f2 + f;
+        let h01 = three * f2 - two * f3;
+        let h11 = f3 - f2;
+        lanes::clamp(h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1, L::c(0.0), L::c(1.0))
+    }
+
     /// `E(w)` interpolated from the table.
     #[inline]
     #[must_use]
@@ -1000,6 +1052,39 @@ fn azimuth_node(alpha_x: f64, alpha_y: f64, k: usize, n: usize) -> f64 {
 /// The offset `c` of the azimuth coordinate `ln(α(φ) + c)`.
 fn azimuth_offset(alpha_x: f64, alpha_y: f64) -> f64 {
     0.01 * alpha_x.max(alpha_y)
+}
+
+/// `ln(1 + x)` for `x ∈ [0, 2¹⁵)`, per lane: `std` for one lane (so the scalar paths are those
+/// of [`AlbedoTable::loss`] bit for bit), otherwise `u = 1 + x = 2^e·m` with `m ∈ [√½, √2)`
+/// found by a branch-free binary search on the exponent, `ln m = 2 atanh((m − 1)/(m + 1))` by
+/// its series to the 11th power (truncation < 1e-10), and the rounding of `1 + x` corrected by
+/// the factor `x/(u − 1)`. About 1 ulp in f32; only the table coordinate uses it.
+#[inline(always)]
+fn ln_1p_lanes<L: Lanes>(x: L) -> L {
+    if L::WIDTH == 1 {
+        return x.map_lanes(num_traits::Float::ln_1p);
+    }
+    let one = L::c(1.0);
+    let u = x + one;
+    let mut m = u;
+    let mut e = L::c(0.0);
+    for k in [8, 4, 2, 1] {
+        let big = lanes::ge(m, L::c(f64::from(1u32 << k)));
+        m = lanes::select(big, m * L::c(1.0 / f64::from(1u32 << k)), m);
+        e += lanes::keep(big, L::c(f64::from(k)));
+    }
+    let big = lanes::gt(m, L::c(std::f64::consts::SQRT_2));
+    m = lanes::select(big, m * L::c(0.5), m);
+    e += lanes::keep(big, one);
+    let z = (m - one) / (m + one);
+    let w = z * z;
+    let mut p = L::c(1.0 / 11.0);
+    for c in [1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0, 1.0] {
+        p = p.mul_add_(w, L::c(c));
+    }
+    // e·ln 2 in two parts (Cody-Waite) so that e·C1 is exact.
+    let ln_u = e.mul_add_(L::c(0.693_359_375), e.mul_add_(L::c(-2.121_944_400_546_905_8e-4), L::c(2.0) * z * p));
+    lanes::select(lanes::eq(u, one), x, ln_u * (x / (u - one)))
 }
 
 /// Splits a table coordinate `x ∈ [0, n−1]` into a cell index and a fraction.
@@ -1217,6 +1302,31 @@ mod reference {
 mod tests {
     use super::reference::directional_albedo_adaptive;
     use super::*;
+
+    /// The lane `ln(1 + x)` of the table coordinate in AVX2 lanes against `std` in f64, over
+    /// the range the tables use (`μ/ε ≤ 10⁴`).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn lane_ln_1p_matches_std() {
+        use crate::lanes::x86::F32x8;
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn run(x: f32) -> f32 {
+            ln_1p_lanes(F32x8::splat(x)).lane(3)
+        }
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+            return;
+        }
+        let mut worst = 0.0f64;
+        for k in 0..40_000 {
+            let x = if k < 20_000 { f64::from(k) * 5e-5 } else { 10f64.powf(f64::from(k - 20_000) * 4e-4 - 4.0) };
+            let x = x.min(1e4) as f32;
+            // SAFETY: AVX2 and FMA were detected above.
+            let got = unsafe { run(x) };
+            let want = f64::from(x).ln_1p();
+            worst = worst.max((f64::from(got) - want).abs() / want.max(1e-30));
+        }
+        assert!(worst < 5e-7, "{worst}");
+    }
     use crate::frame::spherical_direction;
     use crate::rng::Pcg32;
     use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};

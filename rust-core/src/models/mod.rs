@@ -163,7 +163,14 @@ impl Model {
     /// time behind the same batch entry points.
     #[must_use]
     pub fn has_lane_kernel(&self) -> bool {
-        matches!(self, Model::Lambert(_) | Model::RoughConductor(_) | Model::RoughPlastic(_) | Model::CookTorrance(_))
+        matches!(
+            self,
+            Model::Lambert(_)
+                | Model::RoughConductor(_)
+                | Model::RoughPlastic(_)
+                | Model::CookTorrance(_)
+                | Model::Principled(_)
+        )
     }
 
     /// [`Model::eval`] per lane (unit, finite directions): zero where a direction is at or
@@ -183,6 +190,7 @@ impl Model {
             Model::RoughConductor(m) => m.eval_lanes(wi, wo),
             Model::RoughPlastic(m) => m.eval_lanes(wi, wo),
             Model::CookTorrance(m) => m.eval_lanes(wi, wo),
+            Model::Principled(m) => m.eval_lanes(wi, wo),
             _ => per_lane_rgb(wi, wo, |a, b| self.eval(a, b)),
         };
         Rgb::select(above, f, Rgb::zero())
@@ -202,6 +210,7 @@ impl Model {
             Model::RoughConductor(m) => m.pdf_lanes(wi, wo),
             Model::RoughPlastic(m) => m.pdf_lanes(wi, wo),
             Model::CookTorrance(m) => m.pdf_lanes(wi, wo),
+            Model::Principled(m) => m.pdf_lanes(wi, wo),
             _ => L::from_fn(|i| self.pdf(lane_of(wi, i), lane_of(wo, i))),
         };
         lanes::keep(above, pdf)
@@ -218,6 +227,7 @@ impl Model {
             Model::RoughConductor(m) => m.sample_lanes(wo, u),
             Model::RoughPlastic(m) => m.sample_lanes(wo, u),
             Model::CookTorrance(m) => m.sample_lanes(wo, u),
+            Model::Principled(m) => m.sample_lanes(wo, u),
             _ => self.sample_per_lane(wo, u),
         };
         let valid = s.valid

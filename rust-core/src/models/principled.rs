@@ -83,10 +83,11 @@
 //! (energy compensation); Walter et al. 2007 and Heitz 2014 (GGX, Smith masking); Belcour &
 //! Barla 2017 (thin-film iridescence).
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::{fresnel_average, AlbedoTable, TableRequest, WeightKey};
 use crate::error::Error;
-use crate::frame::{half_vector, mirror_z};
+use crate::frame::{half_vector_masked, mirror_z};
+use crate::lanes::{self, Lanes, Mask};
 use crate::fresnel;
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
@@ -94,7 +95,7 @@ use crate::models::Model;
 use crate::paint::thin_film::ThinFilm;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, pick_lobe};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::table::MuTable;
 use std::sync::Arc;
 
@@ -263,22 +264,23 @@ enum Fresnel {
 }
 
 impl Fresnel {
-    #[inline]
-    fn eval<T: Real>(&self, cos: T) -> Rgb<T> {
-        let cos = cos.clamp_to(T::zero(), T::one());
+    /// The RGB reflectance at `cos` (clamped to `[0, 1]`), per lane.
+    #[inline(always)]
+    fn eval<L: Lanes>(&self, cos: L) -> Rgb<L> {
+        let cos = lanes::clamp(cos, L::c(0.0), L::c(1.0));
         match self {
-            Fresnel::Dielectric { eta } => Rgb::splat(fresnel::dielectric(cos, T::of(*eta))),
+            Fresnel::Dielectric { eta } => Rgb::splat(fresnel::dielectric(cos, L::c(*eta))),
             Fresnel::F82 { f0, b } => Rgb::new(
-                fresnel::f82(cos, T::of(f0[0]), T::of(b[0])),
-                fresnel::f82(cos, T::of(f0[1]), T::of(b[1])),
-                fresnel::f82(cos, T::of(f0[2]), T::of(b[2])),
+                fresnel::f82(cos, L::c(f0[0]), L::c(b[0])),
+                fresnel::f82(cos, L::c(f0[1]), L::c(b[1])),
+                fresnel::f82(cos, L::c(f0[2]), L::c(b[2])),
             ),
             Fresnel::Remapped { eta, f0_real, f0 } => {
-                let s = remap(fresnel::dielectric(cos, T::of(*eta)), T::of(*f0_real));
-                Rgb::from_array(*f0).map(|f| f + (T::one() - f) * s)
+                let s = remap(fresnel::dielectric(cos, L::c(*eta)), *f0_real);
+                Rgb::from_array(*f0).map(|f| f + (L::c(1.0) - f) * s)
             }
             Fresnel::Film { table, .. } => {
-                let [r, g, b] = table.eval(cos);
+                let [r, g, b] = table.eval_lanes(cos);
                 Rgb::new(r, g, b)
             }
         }
@@ -286,17 +288,17 @@ impl Fresnel {
 
     /// One channel in f64 (for the tables).
     fn channel(&self, c: usize, cos: f64) -> f64 {
-        self.eval(cos)[c]
+        self.eval(cos).to_array()[c]
     }
 }
 
 /// Cycles' remap of the real dielectric curve: `saturate((F − F0)/(1 − F0))`.
-#[inline]
-fn remap<T: Real>(f: T, f0_real: T) -> T {
-    if !(f0_real < T::one()) {
-        return T::zero();
+#[inline(always)]
+fn remap<L: Lanes>(f: L, f0_real: f64) -> L {
+    if !(f0_real < 1.0) {
+        return L::c(0.0);
     }
-    ((f - f0_real) / (T::one() - f0_real)).clamp_to(T::zero(), T::one())
+    lanes::clamp((f - L::c(f0_real)) / (L::c(1.0) - L::c(f0_real)), L::c(0.0), L::c(1.0))
 }
 
 /// The tabulated albedos of a rough lobe.
@@ -405,6 +407,8 @@ impl Lobe {
             .collect();
         drop(asks);
         drop(requests);
+        // The lane lookups locate μ once per lobe (`AlbedoTable::cell_lanes`).
+        assert!(terms.iter().all(|(t, _)| t.same_cells(&e)), "the tables of a lobe share their nodes");
         let e_avg = e.e_avg();
         let f_ms = std::array::from_fn(|c| {
             let f_avg = fresnel_average(|mu| fresnel.channel(c, mu));
@@ -418,69 +422,46 @@ impl Lobe {
         Self { alpha, fresnel, albedo: Some(LobeAlbedo { e, terms, f_ms }) }
     }
 
-    #[inline]
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.alpha);
+    #[inline(always)]
+    fn microfacet<L: Lanes>(&self) -> Microfacet<L> {
+        let a = L::c(self.alpha);
         Microfacet::new(GGX, a, a)
     }
 
-    /// Cycles' energy scale `1 + F_ms (1 − E(μo))/E(μo)` per channel (1 for a mirror).
-    #[inline]
-    fn energy_scale<T: Real>(&self, mu_o: T) -> Rgb<T> {
-        match &self.albedo {
-            None => Rgb::splat(T::one()),
-            Some(a) => {
-                let e = a.e.e(Vec3::new(T::zero(), T::zero(), mu_o)).max(T::of(1e-4));
-                let missing = (T::one() - e) / e;
-                Rgb::from_array(a.f_ms).map(|f| T::one() + f * missing)
-            }
-        }
+    /// The E table (`None` for a mirror): its cells serve every table of the lobe.
+    fn grid(&self) -> Option<&AlbedoTable> {
+        self.albedo.as_ref().map(|a| a.e.as_ref())
     }
 
-    /// Directional albedo at `μo` including the energy scale (`F(μo)` for a mirror).
-    #[inline]
-    fn albedo<T: Real>(&self, mu_o: T) -> Rgb<T> {
-        match &self.albedo {
-            None => self.fresnel.eval(mu_o),
-            Some(a) => {
-                let w = Vec3::new(T::zero(), T::zero(), mu_o);
-                let mut s = Rgb::zero();
-                for (t, coef) in &a.terms {
-                    s += Rgb::from_array(*coef) * t.e(w);
-                }
-                s.map(|v| v.clamp_to(T::zero(), T::one())) * self.energy_scale(mu_o)
-            }
+    /// Directional albedo at `μo` including the energy scale (`F(μo)` for a mirror), and
+    /// Cycles' energy scale `1 + F_ms (1 − E(μo))/E(μo)` per channel (1 for a mirror). `cell`
+    /// is the cell of `μo` in the lobe's tables ([`AlbedoTable::cell_lanes`]).
+    #[inline(always)]
+    fn albedo_and_scale<L: Lanes>(&self, mu_o: L, cell: Option<(L, L)>) -> (Rgb<L>, Rgb<L>) {
+        let (Some(a), Some(cell)) = (&self.albedo, cell) else {
+            return (self.fresnel.eval(mu_o), Rgb::splat(L::c(1.0)));
+        };
+        let e_loss = a.e.loss_at_lanes(cell);
+        let e = lanes::max(L::c(1.0) - e_loss, L::c(1e-4));
+        let missing = (L::c(1.0) - e) / e;
+        let scale = Rgb::from_array(a.f_ms).map(|f| L::c(1.0) + f * missing);
+        let mut s = Rgb::zero();
+        for (t, coef) in &a.terms {
+            // The E table is usually one of the terms: its value is already known.
+            let loss = if Arc::ptr_eq(t, &a.e) { e_loss } else { t.loss_at_lanes(cell) };
+            s += Rgb::from_array(*coef) * (L::c(1.0) - loss);
         }
+        (s.map(|v| lanes::clamp(v, L::c(0.0), L::c(1.0))) * scale, scale)
     }
 
-    /// The single-scattering lobe `F D G2 / (4 cos θi cos θo)` without the energy scale
-    /// (zero for a mirror).
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, h: Option<Vec3<T>>) -> Rgb<T> {
-        let (Some(h), Some(_)) = (h, &self.albedo) else { return Rgb::zero() };
-        let mf = self.microfacet::<T>();
+    /// `D G2 / (4 cos θi cos θo)` of a rough lobe at the half vector `h`, and where the lobe
+    /// is non-zero (`h` defined, `G2 > 0`, the value finite).
+    #[inline(always)]
+    fn shape<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, h: Vec3<L>, defined: L::Mask) -> (L, L::Mask) {
+        let mf = self.microfacet::<L>();
         let g = mf.g(wi, wo, h, HEIGHT_CORRELATED);
-        if !(g > T::zero()) {
-            return Rgb::zero();
-        }
-        let v = mf.d(h) * g / (T::of(4.0) * wi.z * wo.z);
-        if !v.is_finite() {
-            return Rgb::zero();
-        }
-        self.fresnel.eval(wi.dot(h)) * v
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        if self.albedo.is_none() {
-            return T::zero();
-        }
-        self.microfacet::<T>().reflection_pdf(wi, wo, true)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Option<Vec3<T>> {
-        self.microfacet::<T>().sample_reflection(wo, u1, u2, true)
+        let v = mf.d(h) * g / (L::c(4.0) * wi.z * wo.z);
+        (v, defined & lanes::gt(g, L::c(0.0)) & lanes::is_finite(v))
     }
 }
 
@@ -542,6 +523,10 @@ impl Principled {
             };
             Lobe::new(alpha, fresnel)
         });
+        if let (Some(m), Some(s)) = (metal.as_ref().and_then(Lobe::grid), spec.as_ref().and_then(Lobe::grid)) {
+            // The lane lookups locate μ once for both base lobes (`Principled::cells`).
+            assert!(m.same_cells(s), "metal and specular tables share their nodes");
+        }
         Self { inputs: *p, coat, metal, spec }
     }
 
@@ -561,72 +546,150 @@ impl Principled {
         [self.coat.as_ref(), self.metal.as_ref(), self.spec.as_ref()]
     }
 
-    /// The layer weights at `cos θo = mu_o` (see the module docs).
-    fn layers<T: Real>(&self, mu_o: T) -> Layers<T> {
+    /// The cells of `μo` in the tables of the coat and of the base lobes (metal and specular
+    /// share the roughness, hence the table nodes).
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    fn cells<L: Lanes>(&self, mu_o: L) -> (Option<(L, L)>, Option<(L, L)>) {
+        let coat = self.coat.as_ref().and_then(Lobe::grid).map(|t| t.cell_lanes(mu_o));
+        let base = self.metal.as_ref().or(self.spec.as_ref()).and_then(Lobe::grid).map(|t| t.cell_lanes(mu_o));
+        (coat, base)
+    }
+
+    /// The layer weights at `cos θo = mu_o` (see the module docs), per lane.
+    #[inline(always)]
+    fn layers<L: Lanes>(&self, mu_o: L) -> Layers<L> {
         let p = &self.inputs;
+        let zero = L::c(0.0);
+        let one = L::c(1.0);
         let mut l = Layers {
             scaled: [Rgb::zero(); 3],
             delta: Rgb::zero(),
             diffuse: Rgb::zero(),
-            select: [T::zero(); 4],
-            select_delta: T::zero(),
+            select: [zero; 4],
+            select_delta: zero,
             albedo: Rgb::zero(),
         };
-        // Records lobe `i` with layer weight `weight`; returns its albedo at μo.
-        let add = |l: &mut Layers<T>, i: usize, lobe: &Lobe, weight: Rgb<T>| -> Rgb<T> {
-            let albedo = lobe.albedo(mu_o);
-            let a = weight * albedo;
-            l.select[i] = a.average();
-            l.albedo += a;
-            if lobe.albedo.is_none() {
-                l.delta += a;
-                l.select_delta += a.average();
-            } else {
-                l.scaled[i] = weight * lobe.energy_scale(mu_o);
-            }
-            albedo
-        };
-        let mut w = Rgb::splat(T::one());
+        let (coat_cell, base_cell) = self.cells(mu_o);
+        let mut w = Rgb::splat(one);
         if p.coat_weight > WEIGHT_CUTOFF {
-            let cw = T::of(p.coat_weight);
+            let cw = L::c(p.coat_weight);
             if let Some(coat) = &self.coat {
-                let albedo = add(&mut l, 0, coat, Rgb::splat(cw));
-                w *= (T::one() - cw * albedo.max_channel()).clamp_to(T::zero(), T::one());
+                let albedo = l.add(0, coat, Rgb::splat(cw), mu_o, coat_cell);
+                w *= lanes::clamp(one - cw * max_channel(albedo), zero, one);
             }
             if p.coat_tint != [1.0; 3] {
                 // Beer's law along the refracted viewing direction, normalised at normal
-                // incidence: tint^(1/cos θt).
-                let inv = T::one() / T::of(p.coat_ior);
-                let cos_t = (T::one() - inv * inv * (T::one() - mu_o * mu_o)).safe_sqrt();
-                let depth = T::one() / cos_t;
-                w = w * Rgb::<T>::from_array(p.coat_tint).map(|t: T| {
-                    let tr = if t > T::zero() { t.powf(depth) } else { T::zero() };
-                    T::one() - cw + cw * tr
-                });
+                // incidence: tint^(1/cos θt), as e^(ln(tint)/cos θt).
+                let inv = one / L::c(p.coat_ior);
+                let cos_t = lanes::safe_sqrt(one - inv * inv * (one - mu_o * mu_o));
+                let depth = one / cos_t;
+                let t = p.coat_tint;
+                w = w * Rgb::new(tinted(t[0], depth, cw), tinted(t[1], depth, cw), tinted(t[2], depth, cw));
             }
         }
         if let Some(metal) = &self.metal {
-            let m = T::of(p.metallic);
-            add(&mut l, 1, metal, w * m);
-            w *= T::one() - m;
+            let m = L::c(p.metallic);
+            l.add(1, metal, w * m, mu_o, base_cell);
+            w *= one - m;
         }
         if let Some(spec) = &self.spec {
-            let albedo = add(&mut l, 2, spec, w);
+            let albedo = l.add(2, spec, w, mu_o, base_cell);
             // Cycles: w · saturate(1 − max over the channels with w ≠ 0 of A_c).
-            let mut m = T::zero();
-            for c in 0..3 {
-                if w[c] > T::zero() {
-                    m = m.max(albedo[c]);
-                }
+            let mut m = zero;
+            for (wc, ac) in [(w.r, albedo.r), (w.g, albedo.g), (w.b, albedo.b)] {
+                m = lanes::select(lanes::gt(wc, zero), lanes::max(m, ac), m);
             }
-            w *= (T::one() - m).clamp_to(T::zero(), T::one());
+            w *= lanes::clamp(one - m, zero, one);
         }
         let rho = w * Rgb::from_array(p.base_color);
-        l.diffuse = w * T::inv_pi();
-        l.select[3] = rho.average();
+        l.diffuse = w * L::c(std::f64::consts::FRAC_1_PI);
+        l.select[3] = average(rho);
         l.albedo += rho;
         l
     }
+
+    /// `f_r` with the layer weights of this `wo`.
+    #[inline(always)]
+    fn eval_with<L: Lanes>(&self, l: &Layers<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let (h, defined) = half_vector_masked(wi, wo);
+        let mut f = l.diffuse * Rgb::from_array(self.inputs.base_color);
+        // Metal and specular share the roughness: one D·G term for both.
+        let base = self.metal.as_ref().or(self.spec.as_ref()).filter(|b| b.albedo.is_some());
+        let base_shape = base.map(|b| b.shape(wi, wo, h, defined));
+        let cos_ih = wi.dot(h);
+        for (i, lobe) in self.lobes().into_iter().enumerate() {
+            let Some(lobe) = lobe.filter(|lobe| lobe.albedo.is_some()) else { continue };
+            let (v, ok) = match (i, base_shape) {
+                (1 | 2, Some(s)) => s,
+                _ => lobe.shape(wi, wo, h, defined),
+            };
+            f += l.scaled[i] * Rgb::select(ok, lobe.fresnel.eval(cos_ih) * v, Rgb::zero());
+        }
+        f
+    }
+
+    /// The sampling density with the layer weights of this `wo`.
+    #[inline(always)]
+    fn pdf_with<L: Lanes>(&self, l: &Layers<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let zero = L::c(0.0);
+        let total = l.select.iter().fold(zero, |a, &b| a + b);
+        let mut p = l.select[3] * cosine_hemisphere_pdf(wi.z);
+        let base = self.metal.as_ref().or(self.spec.as_ref()).filter(|b| b.albedo.is_some());
+        let base_pdf = base.map(|b| b.microfacet::<L>().reflection_pdf(wi, wo, true));
+        for (i, (lobe, &s)) in self.lobes().into_iter().zip(&l.select).enumerate() {
+            let Some(lobe) = lobe.filter(|lobe| lobe.albedo.is_some()) else { continue };
+            let pdf = match (i, base_pdf) {
+                (1 | 2, Some(pdf)) => pdf,
+                _ => lobe.microfacet::<L>().reflection_pdf(wi, wo, true),
+            };
+            p += lanes::keep(lanes::gt(s, zero), s * pdf);
+        }
+        lanes::keep(lanes::gt(total, zero), p / total)
+    }
+}
+
+impl<L: Lanes> Layers<L> {
+    /// Records lobe `i` with layer weight `weight`; returns its albedo at `μo`.
+    #[inline(always)]
+    fn add(&mut self, i: usize, lobe: &Lobe, weight: Rgb<L>, mu_o: L, cell: Option<(L, L)>) -> Rgb<L> {
+        let (albedo, scale) = lobe.albedo_and_scale(mu_o, cell);
+        let a = weight * albedo;
+        self.select[i] = average(a);
+        self.albedo += a;
+        if lobe.albedo.is_none() {
+            self.delta += a;
+            self.select_delta += average(a);
+        } else {
+            self.scaled[i] = weight * scale;
+        }
+        albedo
+    }
+}
+
+/// The coat's tint factor `1 − cw + cw·t^depth` of one channel (`t^depth` as `e^(depth ln t)`).
+#[inline(always)]
+fn tinted<L: Lanes>(t: f64, depth: L, cw: L) -> L {
+    let tr = if t == 1.0 {
+        L::c(1.0)
+    } else if t > 0.0 {
+        lanes::exp(depth * L::c(t.ln()))
+    } else {
+        L::c(0.0)
+    };
+    L::c(1.0) - cw + cw * tr
+}
+
+/// Mean of the three channels (as [`Rgb::average`]), per lane.
+#[inline(always)]
+fn average<L: Lanes>(c: Rgb<L>) -> L {
+    (c.r + c.g + c.b) / L::c(3.0)
+}
+
+/// Largest channel (as [`Rgb::max_channel`]), per lane.
+#[inline(always)]
+fn max_channel<L: Lanes>(c: Rgb<L>) -> L {
+    lanes::max(lanes::max(c.r, c.g), c.b)
 }
 
 /// The thin-film Fresnel curve of the specular layer (Cycles' iridescent generalised
@@ -655,55 +718,105 @@ fn film_table(thickness: f64, film_ior: f64, eta: f64, f0_real: f64, f0: [f64; 3
     (table, film_ior)
 }
 
-impl Bxdf for Principled {
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = self.layers(wo.z);
-        let h = half_vector(wi, wo);
-        let mut f = l.diffuse * Rgb::from_array(self.inputs.base_color);
-        for (lobe, w) in self.lobes().into_iter().zip(l.scaled) {
-            match lobe {
-                Some(lobe) if !w.is_black() => f += w * lobe.eval(wi, wo, h),
-                _ => {}
-            }
-        }
-        f
+impl LaneBxdf for Principled {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        self.eval_with(&self.layers(wo.z), wi, wo)
     }
 
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let l = self.layers(wo.z);
-        let total = l.select.iter().fold(T::zero(), |a, &b| a + b);
-        if !(total > T::zero()) {
-            return T::zero();
-        }
-        let mut p = l.select[3] * cosine_hemisphere_pdf(wi.z);
-        for (lobe, &s) in self.lobes().into_iter().zip(&l.select) {
-            match lobe {
-                Some(lobe) if s > T::zero() => p += s * lobe.pdf(wi, wo),
-                _ => {}
-            }
-        }
-        p / total
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        self.pdf_with(&self.layers(wo.z), wi, wo)
     }
 
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let zero = L::c(0.0);
+        let none = L::Mask::splat(false);
         let l = self.layers(wo.z);
-        let (i, _) = pick_lobe(&l.select, u[0])?;
-        let wi = match self.lobes().get(i).copied().flatten() {
-            None => cosine_hemisphere(u[1], u[2]),
-            Some(lobe) if lobe.albedo.is_none() => {
-                // The mirror lobes, together: one delta component.
-                let total = l.select.iter().fold(T::zero(), |a, &b| a + b);
-                let p = l.select_delta / total;
-                let weight = l.delta / p;
-                return (p > T::zero() && weight.is_finite())
-                    .then_some(BsdfSample { wi: mirror_z(wo), weight, pdf: p, delta: true });
-            }
-            Some(lobe) => lobe.sample(wo, u[1], u[2])?,
+        // The lobe u[0] picks in proportion to the selection weights (as `pick_lobe`): the
+        // first positive weight whose cumulative sum passes u[0]·total, the diffuse lobe
+        // last; past the end by rounding, the last positive weight.
+        let total = l.select.iter().fold(zero, |a, &b| a + b);
+        let target = u[0] * total;
+        let mut acc = zero;
+        let mut done = none;
+        let mut chosen = [none; 4];
+        for (i, (c, &w)) in chosen.iter_mut().zip(&l.select).enumerate() {
+            let positive = lanes::gt(w, zero);
+            let hit = if i == 3 { positive } else { positive & lanes::lt(target, acc + w) };
+            *c = hit & !done;
+            done = done | hit;
+            acc += w;
+        }
+        let mut later = none;
+        for (c, &w) in chosen.iter_mut().zip(&l.select).rev() {
+            let positive = lanes::gt(w, zero);
+            *c = *c | (!done & positive & !later);
+            later = later | positive;
+        }
+        let picked = lanes::gt(total, zero);
+        let lobes = self.lobes();
+        let rough = |i: usize| lobes[i].is_some_and(|lobe| lobe.albedo.is_some());
+        let mirror = |i: usize| lobes[i].is_some_and(|lobe| lobe.albedo.is_none());
+
+        // Rough lobes: visible normals of the coat's or the base's roughness.
+        let diffuse_wi = cosine_hemisphere(u[1], u[2]);
+        let base_alpha = self.metal.as_ref().or(self.spec.as_ref()).map_or(0.0, |b| b.alpha);
+        let coat_alpha = self.coat.as_ref().map_or(0.0, |c| c.alpha);
+        let alpha = match (rough(0), rough(1) || rough(2)) {
+            (true, true) => Some(lanes::select(chosen[0], L::c(coat_alpha), L::c(base_alpha))),
+            (true, false) => Some(L::c(coat_alpha)),
+            (false, true) => Some(L::c(base_alpha)),
+            (false, false) => None,
         };
-        if !(wi.z > T::zero()) {
-            return None;
+        let (wi, smooth_ok) = match alpha {
+            Some(a) => {
+                let (spec_wi, spec_ok) = Microfacet::new(GGX, a, a).sample_reflection_masked(wo, u[1], u[2], true);
+                (Vec3::select(chosen[3], diffuse_wi, spec_wi), chosen[3] | spec_ok)
+            }
+            None => (diffuse_wi, chosen[3]),
+        };
+        let valid = picked & smooth_ok & lanes::gt(wi.z, zero);
+        let s = LaneSample::from_eval(wi, self.eval_with(&l, wi, wo), self.pdf_with(&l, wi, wo), valid);
+        if !(0..3).any(mirror) {
+            return s;
         }
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        // The mirror lobes, together: one delta component.
+        let mut delta = none;
+        for (i, &c) in chosen.iter().enumerate().take(3) {
+            if mirror(i) {
+                delta = delta | c;
+            }
+        }
+        let p = l.select_delta / total;
+        let weight = l.delta / p;
+        let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
+        let delta_ok = picked & lanes::gt(p, zero) & finite;
+        LaneSample {
+            wi: Vec3::select(delta, mirror_z(wo), s.wi),
+            weight: Rgb::select(delta, weight, s.weight),
+            pdf: lanes::select(delta, p, s.pdf),
+            valid: (delta & delta_ok) | (!delta & s.valid),
+            delta,
+        }
+    }
+}
+
+impl Bxdf for Principled {
+    #[inline]
+    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_lanes(wi, wo)
+    }
+
+    #[inline]
+    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        self.pdf_lanes(wi, wo)
+    }
+
+    #[inline]
+    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+        self.sample_lanes(wo, u).into_option()
     }
 }
 
