@@ -8,7 +8,7 @@
 
 use crate::arrays::Batch;
 use crate::material::{lq_material, material};
-use crate::status::{guard, lq_status, Failure};
+use crate::status::{guard, guard_value, lq_status, Failure};
 use lacquer_core::{Material, Real, SurfacePoint, Vec3};
 use std::ffi::c_float;
 
@@ -967,13 +967,22 @@ unsafe fn eval_pdf_soa_impl(
     let mut b = Batch::<10>::new(n);
     let wi_v = soa_in(&mut b, &["wi_x", "wi_y", "wi_z"], wi, n)?;
     let wo_v = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], wo, n)?;
+    // A wanted output is required; an unwanted one takes its slot as an empty span.
     let f = match f {
         Some(p) => Some(soa_out(&mut b, &["f_r", "f_g", "f_b"], p)?),
-        None => None,
+        None => {
+            for name in ["f_r", "f_g", "f_b"] {
+                b.optional_output::<c_float, 1>(name, std::ptr::null_mut())?;
+            }
+            None
+        }
     };
     let pdf = match pdf {
         Some(p) => Some(b.output::<c_float, 1>("pdf", p)?.ptr().cast::<c_float>()),
-        None => None,
+        None => {
+            b.optional_output::<c_float, 1>("pdf", std::ptr::null_mut())?;
+            None
+        }
     };
     b.check_overlaps()?;
     // SAFETY: validated, disjoint outputs of n elements (caller's contract for lengths).
@@ -1099,7 +1108,7 @@ pub unsafe extern "C" fn lq_sample_soa(
         if n == 0 {
             return Ok(());
         }
-        let mut b = Batch::<15>::new(n);
+        let mut b = Batch::<14>::new(n);
         let wo_v = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?;
         let u_v = soa_in(&mut b, &["u0", "u1", "u2"], [u0, u1, u2], n)?;
         let wi_p = soa_out(&mut b, &["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z])?;
@@ -1130,16 +1139,16 @@ pub unsafe extern "C" fn lq_sample_soa(
 /// thread, 0 (the default) uses every core. Process-wide; results do not depend on it.
 #[no_mangle]
 pub extern "C" fn lq_set_thread_count(n: u32) {
-    lacquer_core::batch::set_thread_count(n as usize);
+    guard_value((), || lacquer_core::batch::set_thread_count(n as usize));
 }
 
 /// The instruction set the batch kernels use on this CPU: "avx512", "avx2" or "scalar"
 /// (static string). `LACQUER_SIMD=scalar|avx2` in the environment lowers it.
 #[no_mangle]
 pub extern "C" fn lq_simd_level() -> *const std::ffi::c_char {
-    match lacquer_core::batch::simd_level() {
+    guard_value(c"scalar".as_ptr(), || match lacquer_core::batch::simd_level() {
         lacquer_core::batch::SimdLevel::Avx512 => c"avx512".as_ptr(),
         lacquer_core::batch::SimdLevel::Avx2 => c"avx2".as_ptr(),
         lacquer_core::batch::SimdLevel::Scalar => c"scalar".as_ptr(),
-    }
+    })
 }

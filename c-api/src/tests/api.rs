@@ -565,3 +565,144 @@ fn render_produces_an_image_reports_errors_and_cancels() {
         assert_eq!(lq_render(job.as_ptr(), None, std::ptr::null_mut(), std::ptr::null_mut()), lq_status::LQ_ERR_NULL);
     }
 }
+
+/// The structure-of-arrays calls give exactly the interleaved calls' values (same kernels),
+/// zero outputs for inactive elements, the same statuses for invalid elements, and refuse
+/// NULL component arrays; lq_set_thread_count does not change any value.
+#[test]
+fn soa_calls_match_the_interleaved_calls() {
+    let n = 1003;
+    let (wi, wo, u) = inputs(n, 31);
+    let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+    let split = |a: &[f32]| -> [Vec<f32>; 3] { [0, 1, 2].map(|c| a.iter().skip(c).step_by(3).copied().collect()) };
+    let (wis, wos, us) = (split(&wi), split(&wo), split(&u));
+    let active: Vec<u8> = (0..n).map(|i| u8::from(i % 7 != 3)).collect();
+    for json in [
+        r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.2, "alpha_v": 0.2, "material": "Au"}"#,
+        r#"{"model": "lambert"}"#,
+        r#"{"preset": "gold_flake_8"}"#,
+        r#"{"model": "ward"}"#,
+    ] {
+        let m = material(json);
+        let (mut f, mut p) = (vec![0f32; 3 * n], vec![0f32; n]);
+        let (mut swi, mut sw, mut sp, mut fl) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n], vec![0u32; n]);
+        let mut out = [vec![9f32; n], vec![9f32; n], vec![9f32; n], vec![9f32; n]];
+        let mut s_wi = [vec![9f32; n], vec![9f32; n], vec![9f32; n]];
+        let mut s_w = [vec![9f32; n], vec![9f32; n], vec![9f32; n]];
+        let (mut s_p, mut s_fl) = (vec![9f32; n], vec![9u32; n]);
+        unsafe {
+            assert_eq!(lq_eval_pdf(m, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), p.as_mut_ptr()), LQ_OK);
+            let s = lq_sample_spatial(
+                m,
+                n,
+                wo.as_ptr(),
+                u.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                swi.as_mut_ptr(),
+                sw.as_mut_ptr(),
+                sp.as_mut_ptr(),
+                fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK);
+            lq_set_thread_count(1);
+            let [fr, fg, fb, pdf] = &mut out;
+            let s = lq_eval_pdf_soa(
+                m,
+                n,
+                wis[0].as_ptr(),
+                wis[1].as_ptr(),
+                wis[2].as_ptr(),
+                wos[0].as_ptr(),
+                wos[1].as_ptr(),
+                wos[2].as_ptr(),
+                active.as_ptr(),
+                fr.as_mut_ptr(),
+                fg.as_mut_ptr(),
+                fb.as_mut_ptr(),
+                pdf.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK, "{json}");
+            lq_set_thread_count(0);
+            let [x, y, z] = &mut s_wi;
+            let [r, g, b] = &mut s_w;
+            let s = lq_sample_soa(
+                m,
+                n,
+                wos[0].as_ptr(),
+                wos[1].as_ptr(),
+                wos[2].as_ptr(),
+                us[0].as_ptr(),
+                us[1].as_ptr(),
+                us[2].as_ptr(),
+                active.as_ptr(),
+                x.as_mut_ptr(),
+                y.as_mut_ptr(),
+                z.as_mut_ptr(),
+                r.as_mut_ptr(),
+                g.as_mut_ptr(),
+                b.as_mut_ptr(),
+                s_p.as_mut_ptr(),
+                s_fl.as_mut_ptr(),
+            );
+            assert_eq!(s, LQ_OK, "{json}");
+        }
+        for i in 0..n {
+            let on = active[i] != 0;
+            for c in 0..3 {
+                let want = if on { f[3 * i + c] } else { 0.0 };
+                assert_eq!(out[c][i].to_bits(), want.to_bits(), "{json} eval {i} {c}");
+                let want = if on { swi[3 * i + c] } else { 0.0 };
+                assert_eq!(s_wi[c][i].to_bits(), want.to_bits(), "{json} sample wi {i} {c}");
+                let want = if on { sw[3 * i + c] } else { 0.0 };
+                assert_eq!(s_w[c][i].to_bits(), want.to_bits(), "{json} sample weight {i} {c}");
+            }
+            assert_eq!(out[3][i].to_bits(), if on { p[i] } else { 0.0 }.to_bits(), "{json} pdf {i}");
+            assert_eq!(s_p[i].to_bits(), if on { sp[i] } else { 0.0 }.to_bits(), "{json} sample pdf {i}");
+            assert_eq!(s_fl[i], if on { fl[i] } else { 0 }, "{json} flags {i}");
+        }
+        // An invalid direction in an active element: the status and message of lq_eval.
+        let mut bad = wis.clone();
+        bad[0][10] = f32::NAN;
+        let mut f2 = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+        let [r, g, b] = &mut f2;
+        let s = unsafe {
+            lq_eval_soa(
+                m,
+                n,
+                bad[0].as_ptr(),
+                bad[1].as_ptr(),
+                bad[2].as_ptr(),
+                wos[0].as_ptr(),
+                wos[1].as_ptr(),
+                wos[2].as_ptr(),
+                std::ptr::null(),
+                r.as_mut_ptr(),
+                g.as_mut_ptr(),
+                b.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, LQ_ERR_INVALID_DIRECTION, "{json}");
+        let msg = last_error();
+        assert!(msg.contains("1 of 1003 elements") && msg.contains("element 10: wi = [NaN"), "{msg}");
+        assert_eq!((f2[0][10], f2[1][10], f2[2][10]), (0.0, 0.0, 0.0));
+        // A NULL component array is refused before anything is written.
+        let s = unsafe {
+            lq_pdf_soa(
+                m,
+                n,
+                wis[0].as_ptr(),
+                std::ptr::null(),
+                wis[2].as_ptr(),
+                wos[0].as_ptr(),
+                wos[1].as_ptr(),
+                wos[2].as_ptr(),
+                std::ptr::null(),
+                f2[0].as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, LQ_ERR_NULL, "{json}");
+        assert!(last_error().contains("wi_y"), "{}", last_error());
+        unsafe { lq_material_free(m) };
+    }
+}
