@@ -116,16 +116,18 @@ impl CheckConfig {
     /// least the quick configuration's (which `cargo test` ran on these models before the `ci`
     /// profile covered it) and the verdict logic is unchanged.
     ///
-    /// Statistical power (docs/checks.md derives it): a χ² stage of N samples with ν degrees
-    /// of freedom detects, with probability 0.95 at the Šidák level 3.3e-3, a sampler whose
-    /// density differs from its pdf by a noncentrality λ = N·Σ(q − p)²/p of ≈ 3.4·√(2ν) + 16
-    /// (≈ 230 for the 32 × 64 grid, ν ≈ 2000); a relative error δ over a part of the lobe
-    /// holding probability w gives λ = N·w·δ². At N = 300 000 (first stage) that is δ = 2.8 %
-    /// over the whole lobe, or 8.8 % over a tenth of it; the retest (1 200 000) 1.4 % / 4.4 %;
-    /// the standard 1 000 000 resolves 1.5 % / 4.8 % in one stage. The furnace's 20 000
-    /// quasi-random samples per direction (standard 50 000) keep its 3σ margin below 1e-3 for
-    /// the albedos these models reach; reciprocity, hard cases, precision and the parameter
-    /// extremes are the standard ones.
+    /// Statistical power (derivation in docs/checks.md): a χ² stage of N samples and ν
+    /// degrees of freedom, at the Šidák level 3.3e-3, rejects with probability 0.95 a sampler
+    /// whose density q differs from its pdf p with noncentrality λ = N·Σ(q − p)²/p ≥ 213
+    /// (ν = 1000) to 294 (ν = 2000, the full 32 × 64 grid); a relative error δ over cells
+    /// holding probability w gives λ = N·w·δ². The retest has 4 N samples, so 4 λ: a sampler
+    /// the first stage rejects with probability 0.95 fails both stages with probability ≈ 0.95.
+    /// At N = 300 000 (here) that is δ = 2.7–3.1 % over the whole lobe, 8.4–9.9 % over a tenth
+    /// of it; the standard N = 1 000 000 resolves 1.5–1.7 % and 4.6–5.4 %. The furnace's
+    /// 20 000 quasi-random samples per direction (standard 50 000) give a 3σ margin of
+    /// 3·σ/√20 000 (σ the per-sample spread, overstated for quasi-random points) against the
+    /// 1e-3 tolerance; reciprocity, hard cases, precision and the parameter extremes are the
+    /// standard ones.
     #[must_use]
     pub fn ci_reduced() -> Self {
         let quick = Self::quick();
