@@ -15,9 +15,8 @@
 //! on the order items ran in (`tests::reports_do_not_depend_on_threads`).
 
 use super::{
-    base_parts, chi2_direction, chi2_needs_retest, extreme_parameter_sets, extreme_set_hard_cases, finish_model,
-    judge, plan_model, retest_config, BaseParts, Chi2Case, CheckConfig, HardCaseReport, ModelReport, PresetReport,
-    Profile,
+    base_parts, chi2_direction, chi2_needs_retest, extreme_parameter_sets, extreme_set_hard_cases, finish_model, judge,
+    plan_model, retest_config, BaseParts, CheckConfig, Chi2Case, HardCaseReport, ModelReport, PresetReport, Profile,
 };
 use crate::bxdf::ModelInfo;
 use crate::material::Material;
