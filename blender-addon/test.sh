@@ -21,6 +21,9 @@ echo "$zip"
 echo "=== tests venv"
 tests_venv="${LACQUER_VENV:-$(bash "$root/scripts/python-env.sh")}"
 cd "$root"
+# -rs lists every skip; the lacquer_no_skip plugin (scripts/pytest/) makes a skip (no bpy, no
+# zip, EEVEE unable to render) a failure; LACQUER_ALLOW_SKIP=1 allows skips outside CI.
+export PYTHONPATH="$root/scripts/pytest${PYTHONPATH:+:$PYTHONPATH}"
 status=0
 for version in ${LACQUER_BPY_VERSIONS:-4.5.15 5.0.1}; do
   echo "=== bpy $version venv"
@@ -30,6 +33,6 @@ for version in ${LACQUER_BPY_VERSIONS:-4.5.15 5.0.1}; do
   "$bpy_venv/bin/python" -c 'import bpy; print("bpy", bpy.app.version_string)'
   echo "=== pytest blender-addon/tests (bpy $version)"
   LACQUER_BLENDER_ZIP="$zip" LACQUER_BLENDER_VENV="$bpy_venv" \
-    "$tests_venv/bin/python" -m pytest -q -s -p no:cacheprovider blender-addon/tests || status=1
+    "$tests_venv/bin/python" -m pytest -q -s -rs -p lacquer_no_skip -p no:cacheprovider blender-addon/tests || status=1
 done
 exit $status

@@ -9,6 +9,7 @@ import drjit as dr
 import mitsuba as mi
 
 import lacquer_mitsuba
+from conftest import skip_or_fail
 from directions import pairs
 
 
@@ -43,7 +44,7 @@ def test_fallback_serves_llvm_mono(lacquer_py):
     try:
         mi.set_variant("llvm_ad_mono")
     except Exception as e:  # noqa: BLE001
-        pytest.skip(f"llvm_ad_mono unavailable: {e}")
+        skip_or_fail(f"llvm_ad_mono unavailable: {e}")
     try:
         assert lacquer_mitsuba.register() == "python"
         bsdf = mi.load_dict({"type": "lacquer", "material": '{"model": "lambert", "albedo": [0.2, 0.5, 0.8]}'})

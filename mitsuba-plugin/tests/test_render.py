@@ -17,7 +17,7 @@ import drjit as dr
 import mitsuba as mi
 
 import lacquer_mitsuba
-from conftest import cli_has_subcommand, lacquer_cli, lacquer_dict, load_lacquer
+from conftest import cli_has_subcommand, lacquer_cli, lacquer_dict, load_lacquer, skip_or_fail
 from imgstats import assert_within_noise, channel_means, compare, read_exr
 
 W, H, SPP, DEPTH = 128, 96, 128, 4
@@ -123,9 +123,9 @@ def lacquer_scene():
 def test_coated_paint_plugin_vs_lacquer_render(scalar_rgb, tmp_path, seed):
     binary = lacquer_cli()
     if binary is None:
-        pytest.skip("the lacquer CLI is not built (cargo build --release -p lacquer-cli)")
+        skip_or_fail("the lacquer CLI is not built (cargo build --release -p lacquer-cli)")
     if not cli_has_subcommand(binary, "render"):
-        pytest.skip(f"{binary} has no `render` subcommand on this branch (the renderer issue)")
+        skip_or_fail(f"{binary} has no `render` subcommand on this branch (the renderer issue)")
     scene_file = tmp_path / "scene.json"
     scene_file.write_text(json.dumps(lacquer_scene()))
     ours = tmp_path / "lacquer.exr"

@@ -8,6 +8,10 @@ use proptest::prelude::*;
 use serde_json::{Map, Value};
 
 /// The shipped checks pass every claim of every model (quick configuration).
+///
+/// CI (scripts/test.sh) skips this test and `every_preset_passes_its_claims`: its
+/// `lacquer check --all --profile ci` step checks the same materials with at least these
+/// samples, pairs and directions (`check::schedule::tests::ci_profile_covers_the_quick_configuration`).
 #[test]
 fn every_model_passes_its_claims() {
     let reports = check::check_all(&CheckConfig::quick());

@@ -94,7 +94,15 @@ fn rel_gap(a: f64, b: f64, floor: f64) -> f64 {
 /// Runs one χ² test per configured outgoing direction.
 #[must_use]
 pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
-    chi2_cases(m, cfg, |wo, u| m.sample(wo, u), |wi, wo| m.eval(wi, wo))
+    (0..cfg.chi2_directions.len()).map(|k| chi2_direction(m, cfg, k)).collect()
+}
+
+/// The χ² test of the `k`-th configured outgoing direction alone: the same numbers as the
+/// `k`-th case of [`chi2_test`] (its random stream starts where the serial run's would), so
+/// directions can run on different threads.
+#[must_use]
+pub fn chi2_direction(m: &Material, cfg: &CheckConfig, k: usize) -> Chi2Case {
+    chi2_case(m, cfg, k, |wo, u| m.sample(wo, u), |wi, wo| m.eval(wi, wo))
 }
 
 /// The χ² tests of [`Material::sample_at`] at one surface point against [`Material::pdf`]
@@ -102,106 +110,111 @@ pub fn chi2_test(m: &Material, cfg: &CheckConfig) -> Vec<Chi2Case> {
 /// weights with [`Material::eval_at`].
 #[must_use]
 pub fn chi2_test_at(m: &Material, cfg: &CheckConfig, at: &SurfacePoint) -> Vec<Chi2Case> {
-    chi2_cases(m, cfg, |wo, u| m.sample_at(wo, u, at), |wi, wo| m.eval_at(wi, wo, at))
+    (0..cfg.chi2_directions.len())
+        .map(|k| chi2_case(m, cfg, k, |wo, u| m.sample_at(wo, u, at), |wi, wo| m.eval_at(wi, wo, at)))
+        .collect()
 }
 
-fn chi2_cases(
+/// Outputs of [`Pcg32::next_u32`] one χ² sample uses (`uniform3`: three 53-bit numbers).
+const DRAWS_PER_SAMPLE: u64 = 6;
+
+fn chi2_case(
     m: &Material,
     cfg: &CheckConfig,
+    k: usize,
     sample: impl Fn(Vec3<f64>, [f64; 3]) -> Option<BsdfSample<f64>>,
     eval: impl Fn(Vec3<f64>, Vec3<f64>) -> Rgb<f64>,
-) -> Vec<Chi2Case> {
+) -> Chi2Case {
     let (nt, np) = (cfg.chi2_theta_bins, cfg.chi2_phi_bins);
+    // One stream for all directions, in order: direction k starts after k·N samples.
     let mut rng = Pcg32::new(cfg.seed, 0xc412);
-    let mut cases = Vec::new();
-    for &(cos_o, phi_o) in &cfg.chi2_directions {
-        let wo = direction(cos_o, phi_o);
-        let n = cfg.chi2_samples;
-        let mut observed = vec![0.0f64; nt * np];
-        let mut outside = 0.0;
-        let mut consistency = 0.0f64;
-        for _ in 0..n {
-            let Some(s) = sample(wo, rng.uniform3()) else {
-                outside += 1.0;
-                continue;
-            };
-            if s.delta {
-                outside += 1.0;
-                continue;
-            }
-            let pdf = m.pdf(s.wi, wo);
-            consistency = consistency.max(rel_gap(s.pdf, pdf, 1e-12));
-            let f = eval(s.wi, wo);
-            for c in 0..3 {
-                let expect = f[c] * s.wi.z / s.pdf;
-                consistency = consistency.max(rel_gap(s.weight[c], expect, 1e-9));
-            }
-            let mu = s.wi.z.clamp(0.0, 1.0);
-            let mut phi = s.wi.y.atan2(s.wi.x);
-            if phi < 0.0 {
-                phi += 2.0 * PI;
-            }
-            let i = ((mu * nt as f64) as usize).min(nt - 1);
-            let j = ((phi / (2.0 * PI) * np as f64) as usize).min(np - 1);
-            observed[i * np + j] += 1.0;
+    rng.advance(DRAWS_PER_SAMPLE * (k * cfg.chi2_samples) as u64);
+    let (cos_o, phi_o) = cfg.chi2_directions[k];
+    let wo = direction(cos_o, phi_o);
+    let n = cfg.chi2_samples;
+    let mut observed = vec![0.0f64; nt * np];
+    let mut outside = 0.0;
+    let mut consistency = 0.0f64;
+    for _ in 0..n {
+        let Some(s) = sample(wo, rng.uniform3()) else {
+            outside += 1.0;
+            continue;
+        };
+        if s.delta {
+            outside += 1.0;
+            continue;
         }
-        let mut expected = vec![0.0f64; nt * np];
-        for i in 0..nt {
-            for j in 0..np {
-                let mu = (i as f64 / nt as f64, (i + 1) as f64 / nt as f64);
-                let ph = (2.0 * PI * j as f64 / np as f64, 2.0 * PI * (j + 1) as f64 / np as f64);
-                expected[i * np + j] = n as f64 * cell_integral(m, wo, mu, ph, CELL_COUNT_TOLERANCE / n as f64);
-            }
+        let pdf = m.pdf(s.wi, wo);
+        consistency = consistency.max(rel_gap(s.pdf, pdf, 1e-12));
+        let f = eval(s.wi, wo);
+        for c in 0..3 {
+            let expect = f[c] * s.wi.z / s.pdf;
+            consistency = consistency.max(rel_gap(s.weight[c], expect, 1e-9));
         }
-        let total_expected: f64 = expected.iter().sum();
-        let pdf_integral = total_expected / n as f64;
-        let mut note = String::new();
-        // Cells where the pdf integrates to zero but samples land: an outright failure.
-        let impossible = observed.iter().zip(&expected).filter(|(o, e)| **o > 0.0 && **e == 0.0).count();
-        if impossible > 0 {
-            note = format!("{impossible} cells received samples where the pdf integrates to zero");
+        let mu = s.wi.z.clamp(0.0, 1.0);
+        let mut phi = s.wi.y.atan2(s.wi.x);
+        if phi < 0.0 {
+            phi += 2.0 * PI;
         }
-        let mut bins: Vec<(f64, f64)> =
-            observed.iter().copied().zip(expected.iter().copied()).filter(|(_, e)| *e > 0.0).collect();
-        bins.push((outside, (n as f64 - total_expected).max(0.0)));
-        bins.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let (mut chi2, mut dof) = (0.0, 0usize);
-        let (mut pool_o, mut pool_e) = (0.0, 0.0);
-        for (o, e) in bins {
-            if e < 5.0 {
-                pool_o += o;
-                pool_e += e;
-                if pool_e >= 5.0 {
-                    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
-                    dof += 1;
-                    pool_o = 0.0;
-                    pool_e = 0.0;
-                }
-            } else {
-                chi2 += (o - e) * (o - e) / e;
-                dof += 1;
-            }
-        }
-        if pool_e > 0.0 {
-            chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
-            dof += 1;
-        } else if pool_o > 0.0 {
-            note = format!("{pool_o} samples in cells with no expected mass");
-        }
-        let dof = dof.saturating_sub(1).max(1);
-        let p_value = if note.is_empty() { super::stats::chi2_sf(chi2, dof as f64) } else { 0.0 };
-        cases.push(Chi2Case {
-            cos_theta: cos_o,
-            phi: phi_o,
-            samples: n,
-            chi2,
-            dof,
-            p_value,
-            pdf_integral,
-            outside_fraction: outside / n as f64,
-            sample_consistency: consistency,
-            note,
-        });
+        let i = ((mu * nt as f64) as usize).min(nt - 1);
+        let j = ((phi / (2.0 * PI) * np as f64) as usize).min(np - 1);
+        observed[i * np + j] += 1.0;
     }
-    cases
+    let mut expected = vec![0.0f64; nt * np];
+    for i in 0..nt {
+        for j in 0..np {
+            let mu = (i as f64 / nt as f64, (i + 1) as f64 / nt as f64);
+            let ph = (2.0 * PI * j as f64 / np as f64, 2.0 * PI * (j + 1) as f64 / np as f64);
+            expected[i * np + j] = n as f64 * cell_integral(m, wo, mu, ph, CELL_COUNT_TOLERANCE / n as f64);
+        }
+    }
+    let total_expected: f64 = expected.iter().sum();
+    let pdf_integral = total_expected / n as f64;
+    let mut note = String::new();
+    // Cells where the pdf integrates to zero but samples land: an outright failure.
+    let impossible = observed.iter().zip(&expected).filter(|(o, e)| **o > 0.0 && **e == 0.0).count();
+    if impossible > 0 {
+        note = format!("{impossible} cells received samples where the pdf integrates to zero");
+    }
+    let mut bins: Vec<(f64, f64)> =
+        observed.iter().copied().zip(expected.iter().copied()).filter(|(_, e)| *e > 0.0).collect();
+    bins.push((outside, (n as f64 - total_expected).max(0.0)));
+    bins.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pool_o, mut pool_e) = (0.0, 0.0);
+    for (o, e) in bins {
+        if e < 5.0 {
+            pool_o += o;
+            pool_e += e;
+            if pool_e >= 5.0 {
+                chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+                dof += 1;
+                pool_o = 0.0;
+                pool_e = 0.0;
+            }
+        } else {
+            chi2 += (o - e) * (o - e) / e;
+            dof += 1;
+        }
+    }
+    if pool_e > 0.0 {
+        chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        dof += 1;
+    } else if pool_o > 0.0 {
+        note = format!("{pool_o} samples in cells with no expected mass");
+    }
+    let dof = dof.saturating_sub(1).max(1);
+    let p_value = if note.is_empty() { super::stats::chi2_sf(chi2, dof as f64) } else { 0.0 };
+    Chi2Case {
+        cos_theta: cos_o,
+        phi: phi_o,
+        samples: n,
+        chi2,
+        dof,
+        p_value,
+        pdf_integral,
+        outside_fraction: outside / n as f64,
+        sample_consistency: consistency,
+        note,
+    }
 }

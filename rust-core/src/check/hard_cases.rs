@@ -62,6 +62,14 @@ impl HardCaseReport {
         }
     }
 
+    /// Adds the result of one extreme parameter set ([`extreme_set_hard_cases`]).
+    pub fn add_extreme(&mut self, r: Result<HardCaseReport, String>) {
+        match r {
+            Ok(r) => self.merge(r),
+            Err(e) => self.rejected.push(e),
+        }
+    }
+
     fn merge(&mut self, o: HardCaseReport) {
         self.materials += o.materials;
         self.outputs += o.outputs;
@@ -223,6 +231,17 @@ pub fn hard_cases(m: &Material) -> HardCaseReport {
 /// pair of them at the four corners (covers e.g. anisotropy ratios α_x/α_y of 1000).
 #[must_use]
 pub fn parameter_extremes(info: &'static ModelInfo) -> HardCaseReport {
+    let mut total = HardCaseReport::default();
+    for obj in extreme_parameter_sets(info) {
+        total.add_extreme(extreme_set_hard_cases(info, &obj));
+    }
+    total
+}
+
+/// The parameter sets of [`parameter_extremes`], in its order: each numeric parameter at its
+/// min and max, and each pair at the four corners.
+#[must_use]
+pub fn extreme_parameter_sets(info: &'static ModelInfo) -> Vec<Map<String, Value>> {
     let numeric: Vec<_> = info
         .params
         .iter()
@@ -252,17 +271,19 @@ pub fn parameter_extremes(info: &'static ModelInfo) -> HardCaseReport {
             }
         }
     }
-    let mut total = HardCaseReport::default();
-    for obj in sets {
-        match super::build(info, &obj) {
-            Ok(m) => {
-                let mut r = hard_cases(&m);
-                let params = Value::Object(obj.clone());
-                r.examples = r.examples.into_iter().map(|e| format!("{params}: {e}")).collect();
-                total.merge(r);
-            }
-            Err(e) => total.rejected.push(format!("{}: {e}", Value::Object(obj))),
+    sets
+}
+
+/// The hard cases of one extreme parameter set, or the model's error when it rejects the set
+/// (fold the results in order with [`HardCaseReport::add_extreme`]).
+pub fn extreme_set_hard_cases(info: &'static ModelInfo, obj: &Map<String, Value>) -> Result<HardCaseReport, String> {
+    match super::build(info, obj) {
+        Ok(m) => {
+            let mut r = hard_cases(&m);
+            let params = Value::Object(obj.clone());
+            r.examples = r.examples.into_iter().map(|e| format!("{params}: {e}")).collect();
+            Ok(r)
         }
+        Err(e) => Err(format!("{}: {e}", Value::Object(obj.clone()))),
     }
-    total
 }

@@ -13,12 +13,13 @@ pub mod furnace;
 mod hard_cases;
 mod precision;
 mod reciprocity;
+mod schedule;
 pub mod sparkle;
 pub mod stats;
 
-pub use chi2::{chi2_test, chi2_test_at, Chi2Case};
+pub use chi2::{chi2_direction, chi2_test, chi2_test_at, Chi2Case};
 pub use furnace::{furnace, FurnaceReport};
-pub use hard_cases::{hard_cases, parameter_extremes, HardCaseReport};
+pub use hard_cases::{extreme_parameter_sets, extreme_set_hard_cases, hard_cases, parameter_extremes, HardCaseReport};
 pub use precision::{precision, PrecisionReport};
 pub use reciprocity::{reciprocity, ReciprocityReport};
 pub use sparkle::{sparkle, SparkleReport};
@@ -101,6 +102,111 @@ impl CheckConfig {
             random_param_sets: 3,
             ..Self::standard()
         }
+    }
+}
+
+/// The models the `ci` profile checks with [`CheckConfig::ci_reduced`]: the physical-optics
+/// seed models, whose evaluation costs 1–5 µs (numerical integration, series, spectral sums)
+/// and whose standard check took 2.5–4 minutes each on one core.
+pub const CI_REDUCED_MODELS: [&str; 3] = ["htsg", "poulin_fournier", "stam"];
+
+impl CheckConfig {
+    /// The configuration of the `ci` profile for [`CI_REDUCED_MODELS`]: the standard one with
+    /// fewer samples and the quick configuration's random parameter sets. Every figure is at
+    /// least the quick configuration's (which `cargo test` ran on these models before the `ci`
+    /// profile covered it) and the verdict logic is unchanged.
+    ///
+    /// Statistical power (derivation in docs/checks.md): a χ² stage of N samples and ν
+    /// degrees of freedom, at the Šidák level 3.3e-3, rejects with probability 0.95 a sampler
+    /// whose density q differs from its pdf p with noncentrality λ = N·Σ(q − p)²/p ≥ 213
+    /// (ν = 1000) to 294 (ν = 2000, the full 32 × 64 grid); a relative error δ over cells
+    /// holding probability w gives λ = N·w·δ². The retest has 4 N samples, so 4 λ: a sampler
+    /// the first stage rejects with probability 0.95 fails both stages with probability ≈ 0.95.
+    /// At N = 300 000 (here) that is δ = 2.7–3.1 % over the whole lobe, 8.4–9.9 % over a tenth
+    /// of it; the standard N = 1 000 000 resolves 1.5–1.7 % and 4.6–5.4 %. The furnace's
+    /// 20 000 quasi-random samples per direction (standard 50 000) give a 3σ margin of
+    /// 3·σ/√20 000 (σ the per-sample spread, overstated for quasi-random points) against the
+    /// 1e-3 tolerance; reciprocity, hard cases, precision and the parameter extremes are the
+    /// standard ones.
+    #[must_use]
+    pub fn ci_reduced() -> Self {
+        let quick = Self::quick();
+        Self {
+            chi2_samples: quick.chi2_samples,
+            furnace_samples: quick.furnace_samples,
+            random_param_sets: quick.random_param_sets,
+            ..Self::standard()
+        }
+    }
+}
+
+/// Which configuration each model is checked with: a base configuration and per-model
+/// exceptions. `lacquer check --profile NAME` selects one.
+#[derive(Clone, Debug)]
+pub struct Profile {
+    /// `standard`, `quick`, `ci`, or a caller's name.
+    pub name: &'static str,
+    /// The configuration of every model without an exception (and of the presets).
+    pub base: CheckConfig,
+    /// `(model, configuration)` exceptions.
+    pub overrides: Vec<(&'static str, CheckConfig)>,
+}
+
+impl Profile {
+    /// Every model with the same configuration.
+    #[must_use]
+    pub fn uniform(name: &'static str, cfg: CheckConfig) -> Self {
+        Self { name, base: cfg, overrides: Vec::new() }
+    }
+
+    /// [`CheckConfig::standard`] for everything: the full run (`lacquer check --all`).
+    #[must_use]
+    pub fn standard() -> Self {
+        Self::uniform("standard", CheckConfig::standard())
+    }
+
+    /// [`CheckConfig::quick`] for everything.
+    #[must_use]
+    pub fn quick() -> Self {
+        Self::uniform("quick", CheckConfig::quick())
+    }
+
+    /// What CI runs (`lacquer check --all --profile ci`): the standard configuration, and
+    /// [`CheckConfig::ci_reduced`] for [`CI_REDUCED_MODELS`].
+    #[must_use]
+    pub fn ci() -> Self {
+        Self {
+            name: "ci",
+            base: CheckConfig::standard(),
+            overrides: CI_REDUCED_MODELS.iter().map(|&m| (m, CheckConfig::ci_reduced())).collect(),
+        }
+    }
+
+    /// The profile called `name`.
+    #[must_use]
+    pub fn by_name(name: &str) -> Option<Self> {
+        match name {
+            "standard" => Some(Self::standard()),
+            "quick" => Some(Self::quick()),
+            "ci" => Some(Self::ci()),
+            _ => None,
+        }
+    }
+
+    /// The same profile with every configuration on `seed`.
+    #[must_use]
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.base.seed = seed;
+        for (_, c) in &mut self.overrides {
+            c.seed = seed;
+        }
+        self
+    }
+
+    /// The configuration model `model` is checked with.
+    #[must_use]
+    pub fn config_for(&self, model: &str) -> &CheckConfig {
+        self.overrides.iter().find(|(m, _)| *m == model).map_or(&self.base, |(_, c)| c)
     }
 }
 
@@ -223,18 +329,46 @@ pub(crate) fn direction(cos_theta: f64, phi: f64) -> Vec3<f64> {
     Vec3::new(s * phi.cos(), s * phi.sin(), cos_theta)
 }
 
+/// The checks of one material that do not depend on the χ² stages.
+#[derive(Clone, Debug)]
+pub(crate) struct BaseParts {
+    reciprocity: ReciprocityReport,
+    furnace: FurnaceReport,
+    hard_cases: HardCaseReport,
+    precision: PrecisionReport,
+    sparkle: Option<SparkleReport>,
+}
+
+/// Runs the checks of one material other than χ² (each on its own random stream).
+pub(crate) fn base_parts(m: &Material, cfg: &CheckConfig) -> BaseParts {
+    BaseParts {
+        reciprocity: reciprocity(m, cfg),
+        furnace: furnace(m, cfg),
+        hard_cases: hard_cases(m),
+        precision: precision(m, cfg),
+        sparkle: sparkle(m, cfg),
+    }
+}
+
 /// Runs every check on one material and judges it against `claims`.
 #[must_use]
 pub fn check_material(m: &Material, cfg: &CheckConfig, origin: &'static str, run_chi2: bool) -> MaterialReport {
-    let claims = m.info().claims;
-    let reciprocity = reciprocity(m, cfg);
-    let furnace = furnace(m, cfg);
-    let chi2 = if run_chi2 && claims.sampled { chi2_test(m, cfg) } else { Vec::new() };
+    let chi2 = if run_chi2 && m.info().claims.sampled { chi2_test(m, cfg) } else { Vec::new() };
     let chi2_retest = if chi2_needs_retest(&chi2, cfg) { chi2_test(m, &retest_config(cfg)) } else { Vec::new() };
-    let hard_cases = hard_cases(m);
-    let precision = precision(m, cfg);
-    let sparkle = sparkle(m, cfg);
+    judge(m, cfg, origin, base_parts(m, cfg), chi2, chi2_retest)
+}
 
+/// The verdicts of one material from its measured parts.
+pub(crate) fn judge(
+    m: &Material,
+    cfg: &CheckConfig,
+    origin: &'static str,
+    base: BaseParts,
+    chi2: Vec<Chi2Case>,
+    chi2_retest: Vec<Chi2Case>,
+) -> MaterialReport {
+    let claims = m.info().claims;
+    let BaseParts { reciprocity, furnace, hard_cases, precision, sparkle } = base;
     let mut verdicts = vec![
         Verdict::new(
             "reciprocity",
@@ -341,14 +475,14 @@ fn sidak_level(significance: f64, cases: usize) -> f64 {
 
 /// Whether the first χ² stage calls for the second: its smallest p-value is below the level
 /// and no case failed outright (samples where the pdf is zero are a bug, not bad luck).
-fn chi2_needs_retest(chi2: &[Chi2Case], cfg: &CheckConfig) -> bool {
+pub(crate) fn chi2_needs_retest(chi2: &[Chi2Case], cfg: &CheckConfig) -> bool {
     let alpha = sidak_level(cfg.significance, chi2.len());
     !chi2.is_empty() && chi2.iter().all(|c| c.note.is_empty()) && chi2.iter().any(|c| c.p_value < alpha)
 }
 
 /// The configuration of the χ² retest: an independent seed and four times the samples, so a
 /// sampler that truly disagrees with its pdf fails again with more power.
-fn retest_config(cfg: &CheckConfig) -> CheckConfig {
+pub(crate) fn retest_config(cfg: &CheckConfig) -> CheckConfig {
     CheckConfig { seed: cfg.seed ^ 0x7e57_7e57, chi2_samples: 4 * cfg.chi2_samples, ..cfg.clone() }
 }
 
@@ -404,20 +538,27 @@ pub fn build(info: &'static ModelInfo, obj: &Map<String, Value>) -> Result<Mater
     Material::from_params(info, Params::parse(info.name, info.params, obj)?)
 }
 
-/// Runs every check on a model: defaults, its declared check sets, random parameter sets
-/// and the parameter-extremes hard cases.
-#[must_use]
-pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
+/// What [`check_model`] checks: the materials in report order and the build errors.
+pub(crate) struct ModelPlan {
+    /// `(material, origin, run χ²)` in report order.
+    pub materials: Vec<(Material, &'static str, bool)>,
+    /// Defaults or check sets that did not build.
+    pub build_errors: Vec<String>,
+}
+
+/// Builds the materials of a model's check: defaults, its declared check sets and the random
+/// parameter sets (drawn in sequence from the seed, so the same sets on every run).
+pub(crate) fn plan_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelPlan {
     let mut materials = Vec::new();
     let mut build_errors = Vec::new();
     match Material::default_of(info) {
-        Ok(m) => materials.push(check_material(&m, cfg, "defaults", true)),
+        Ok(m) => materials.push((m, "defaults", true)),
         Err(e) => build_errors.push(format!("defaults: {e}")),
     }
     for text in info.check_params {
         let obj: Map<String, Value> = serde_json::from_str(text).expect("check_params are JSON objects");
         match build(info, &obj) {
-            Ok(m) => materials.push(check_material(&m, cfg, "check set", true)),
+            Ok(m) => materials.push((m, "check set", true)),
             Err(e) => build_errors.push(format!("{text}: {e}")),
         }
     }
@@ -429,13 +570,30 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
         let obj = random_params(info, &mut rng);
         // Cross-parameter constraints may reject a draw; that is a clear error, not a failure.
         if let Ok(m) = build(info, &obj) {
-            materials.push(check_material(&m, cfg, "random", false));
+            materials.push((m, "random", false));
             drawn += 1;
         }
     }
-    let mut extremes = parameter_extremes(info);
-    extremes.build_errors.extend(build_errors.iter().cloned());
+    ModelPlan { materials, build_errors }
+}
 
+/// Runs every check on a model: defaults, its declared check sets, random parameter sets
+/// and the parameter-extremes hard cases (spread over the available cores; the report does
+/// not depend on how many).
+#[must_use]
+pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
+    let profile = Profile::uniform("custom", cfg.clone());
+    schedule::run(&profile, &[info], &[], default_threads()).0.pop().expect("one model, one report")
+}
+
+/// A model's report from its material reports, extremes and build errors.
+pub(crate) fn finish_model(
+    info: &'static ModelInfo,
+    materials: Vec<MaterialReport>,
+    mut extremes: HardCaseReport,
+    build_errors: Vec<String>,
+) -> ModelReport {
+    extremes.build_errors.extend(build_errors.iter().cloned());
     let mut summary = Summary { furnace_min: f64::INFINITY, chi2_min_p: 1.0, ..Summary::default() };
     for r in &materials {
         summary.worst_reciprocity = summary.worst_reciprocity.max(r.reciprocity.max_relative_error);
@@ -461,31 +619,32 @@ pub fn check_model(info: &'static ModelInfo, cfg: &CheckConfig) -> ModelReport {
     ModelReport { model: info.name, claims: info.claims, materials, parameter_extremes: extremes, summary, passed }
 }
 
-/// Runs `job` on every item, spreading items over the available cores; results keep the order.
-fn parallel_map<I: Sync, R: Send + Clone>(items: &[I], job: impl Fn(&I) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len()).max(1);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut results: Vec<Option<R>> = vec![None; items.len()];
-    let slots = std::sync::Mutex::new(&mut results);
-    std::thread::scope(|s| {
-        for _ in 0..threads {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if i >= items.len() {
-                    break;
-                }
-                let r = job(&items[i]);
-                slots.lock().expect("no panics while holding the lock")[i] = Some(r);
-            });
-        }
-    });
-    results.into_iter().map(|r| r.expect("every item processed")).collect()
+/// The number of threads the checks use by default: every available core.
+#[must_use]
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
 }
 
 /// Checks every registered model.
 #[must_use]
 pub fn check_all(cfg: &CheckConfig) -> Vec<ModelReport> {
-    parallel_map(crate::models::all(), |info| check_model(info, cfg))
+    let profile = Profile::uniform("custom", cfg.clone());
+    schedule::run(&profile, crate::models::all(), &[], default_threads()).0
+}
+
+/// `models` under `profile` on `threads` threads (one work queue over their materials).
+#[must_use]
+pub fn check_models(profile: &Profile, models: &[&'static ModelInfo], threads: usize) -> Vec<ModelReport> {
+    schedule::run(profile, models, &[], threads).0
+}
+
+/// Every registered model and every preset under `profile` on `threads` threads, as one work
+/// queue of (model or preset, material, check part) items so every core stays busy to the
+/// end. The reports are the same for any number of threads.
+#[must_use]
+pub fn check_everything(profile: &Profile, threads: usize) -> (Vec<ModelReport>, Vec<PresetReport>) {
+    let presets: Vec<&'static crate::presets::Preset> = crate::presets::PRESETS.iter().collect();
+    schedule::run(profile, crate::models::all(), &presets, threads)
 }
 
 /// A preset's check report.
@@ -500,10 +659,9 @@ pub struct PresetReport {
 /// Checks every preset as a material (all checks, χ² included).
 #[must_use]
 pub fn check_presets(cfg: &CheckConfig) -> Vec<PresetReport> {
-    parallel_map(crate::presets::PRESETS, |p| {
-        let m = Material::from_json(p.json).expect("presets are valid materials");
-        PresetReport { preset: p.name, report: check_material(&m, cfg, "preset", true) }
-    })
+    let profile = Profile::uniform("custom", cfg.clone());
+    let presets: Vec<&'static crate::presets::Preset> = crate::presets::PRESETS.iter().collect();
+    schedule::run(&profile, &[], &presets, default_threads()).1
 }
 
 #[cfg(test)]
