@@ -15,8 +15,10 @@
 //
 // Variants: scalar_rgb, scalar_spectral (the RGB result is upsampled per evaluation with
 // Mitsuba's own sRGB model, Jakob & Hanika 2019, scaled for values above 1) and llvm_ad_rgb
-// (batched: the arrays are evaluated, one C ABI call per method call, results loaded back; this
-// works only in wavefront mode, i.e. with dr.JitFlag.SymbolicLoops and SymbolicCalls off).
+// (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
+// the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
+// write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
+// with dr.JitFlag.SymbolicLoops and SymbolicCalls off).
 //
 // Parameters (see docs/mitsuba.md):
 //   material   string   Lacquer material JSON, e.g. {"model": "lambert", "albedo": 0.8}
@@ -183,10 +185,50 @@ public:
             return { bs, depolarizer<Spectrum>(value) };
         } else {
             size_t n = batch_begin("sample", si.wi, sample1, sample2, active);
-            Float wo_b = interleave(n, { si.wi.x(), si.wi.y(), si.wi.z() });
-            Float u_b = interleave(n, { sample1, sample2.x(), sample2.y() });
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
+            if (!spatial) {
+                // Structure of arrays: the library reads the evaluated component arrays and the
+                // mask bytes in place and writes into arrays that become the results.
+                FloatJ wo_x = lanes(si.wi.x(), n), wo_y = lanes(si.wi.y(), n), wo_z = lanes(si.wi.z(), n),
+                       u0 = lanes(sample1, n), u1 = lanes(sample2.x(), n), u2 = lanes(sample2.y(), n);
+                MaskJ act = lanes(active, n);
+                FloatJ wi_x = outputs<FloatJ>(n), wi_y = outputs<FloatJ>(n), wi_z = outputs<FloatJ>(n),
+                       w_r = outputs<FloatJ>(n), w_g = outputs<FloatJ>(n), w_b = outputs<FloatJ>(n),
+                       pdf_j = outputs<FloatJ>(n);
+                UInt32J fl_j = outputs<UInt32J>(n);
+                dr::eval(wo_x, wo_y, wo_z, u0, u1, u2, act);
+                const float *px = wo_x.data(), *py = wo_y.data(), *pz = wo_z.data(),
+                            *p0 = u0.data(), *p1 = u1.data(), *p2 = u2.data();
+                const uint8_t *pa = mask_bytes(act);
+                float *o[7] = { wi_x.data(), wi_y.data(), wi_z.data(), w_r.data(), w_g.data(),
+                                w_b.data(), pdf_j.data() };
+                uint32_t *of = fl_j.data();
+                dr::sync_thread();
+                lacquer_detail::check(lq_sample_soa(m_material.get(), n, px, py, pz, p0, p1, p2, pa,
+                                                    o[0], o[1], o[2], o[3], o[4], o[5], o[6], of),
+                                      "lq_sample_soa");
+                Float pdf_v(pdf_j);
+                UInt32 fl(fl_j);
+                Mask delta = (fl & UInt32(LQ_SAMPLE_DELTA)) != 0u;
+                Mask ok = active && (fl & UInt32(LQ_SAMPLE_FAILED)) == 0u && pdf_v > 0.f;
+                if (!delta_on)
+                    ok &= !delta;
+                if (!smooth_on)
+                    ok &= delta;
+                bs.wo = dr::select(ok, Vector3f(Float(wi_x), Float(wi_y), Float(wi_z)), 0.f);
+                bs.pdf = dr::select(ok, pdf_v, 0.f);
+                bs.eta = 1.f;
+                bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_type));
+                bs.sampled_component = dr::select(delta, UInt32(1u), UInt32(0u));
+                UnpolarizedSpectrum value{ Float(w_r), Float(w_g), Float(w_b) };
+                if (m_tint)
+                    value *= m_tint->eval(si, active);
+                return { bs, depolarizer<Spectrum>(value) & ok };
+            }
+            // Spatial (sparkle): interleaved arrays for lq_sample_spatial.
+            Float wo_b = interleave(n, { si.wi.x(), si.wi.y(), si.wi.z() });
+            Float u_b = interleave(n, { sample1, sample2.x(), sample2.y() });
             std::vector<float> wi(3 * n), weight(3 * n), pdf(n);
             std::vector<uint32_t> flags(n);
             const float *wo_p = host(wo_b), *u_p = host(u_b);
@@ -292,10 +334,50 @@ private:
             return { depolarizer<Spectrum>(value), pdf };
         } else {
             size_t n = batch_begin("eval/pdf", si.wi, wo, active);
-            Float a_b = interleave(n, { wo.x(), wo.y(), wo.z() });
-            Float b_b = interleave(n, { si.wi.x(), si.wi.y(), si.wi.z() });
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
+            if (!spatial) {
+                // Structure of arrays, in place (see sample()): Lacquer's wi is Mitsuba's wo.
+                FloatJ ax = lanes(wo.x(), n), ay = lanes(wo.y(), n), az = lanes(wo.z(), n),
+                       bx = lanes(si.wi.x(), n), by = lanes(si.wi.y(), n), bz = lanes(si.wi.z(), n);
+                MaskJ act = lanes(active, n);
+                FloatJ f_r, f_g, f_b, pdf_j;
+                if (want_f) {
+                    f_r = outputs<FloatJ>(n);
+                    f_g = outputs<FloatJ>(n);
+                    f_b = outputs<FloatJ>(n);
+                }
+                if (want_pdf)
+                    pdf_j = outputs<FloatJ>(n);
+                dr::eval(ax, ay, az, bx, by, bz, act);
+                const float *pax = ax.data(), *pay = ay.data(), *paz = az.data(),
+                            *pbx = bx.data(), *pby = by.data(), *pbz = bz.data();
+                const uint8_t *pa = mask_bytes(act);
+                float *pr = want_f ? f_r.data() : nullptr, *pg = want_f ? f_g.data() : nullptr,
+                      *pb = want_f ? f_b.data() : nullptr, *pp = want_pdf ? pdf_j.data() : nullptr;
+                dr::sync_thread();
+                lq_material *m = m_material.get();
+                if (want_f && want_pdf)
+                    lacquer_detail::check(lq_eval_pdf_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pr, pg, pb, pp), "lq_eval_pdf_soa");
+                else if (want_f)
+                    lacquer_detail::check(lq_eval_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pr, pg, pb), "lq_eval_soa");
+                else
+                    lacquer_detail::check(lq_pdf_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pp), "lq_pdf_soa");
+                Spectrum value(0.f);
+                Float pdf_v(0.f);
+                if (want_f) {
+                    UnpolarizedSpectrum v = UnpolarizedSpectrum(Float(f_r), Float(f_g), Float(f_b)) * dr::maximum(wo.z(), 0.f);
+                    if (m_tint)
+                        v *= m_tint->eval(si, active);
+                    value = depolarizer<Spectrum>(v) & active;
+                }
+                if (want_pdf)
+                    pdf_v = dr::select(active, Float(pdf_j), 0.f);
+                return { value, pdf_v };
+            }
+            // Spatial (sparkle): interleaved arrays for the *_spatial calls.
+            Float a_b = interleave(n, { wo.x(), wo.y(), wo.z() });
+            Float b_b = interleave(n, { si.wi.x(), si.wi.y(), si.wi.z() });
             const float *a = host(a_b), *b = host(b_b);
             const float *uv = spatial ? host(uv_b) : nullptr, *duv = spatial ? host(duv_b) : nullptr;
             std::vector<float> f(want_f ? 3 * n : 0), pdf(want_pdf ? n : 0);
@@ -370,6 +452,32 @@ private:
         size_t n = 1;
         ((n = std::max(n, (size_t) dr::width(values))), ...);
         return n;
+    }
+
+    using FloatJ = dr::detached_t<Float>;
+    using UInt32J = dr::detached_t<UInt32>;
+    using MaskJ = dr::detached_t<Mask>;
+
+    /// A detached array of width n (width-1 operands broadcast), for a structure-of-arrays
+    /// call; evaluate it (dr::eval) before taking .data(). Already evaluated arrays of width n
+    /// are used in place (no copy).
+    template <typename T>
+    static dr::detached_t<T> lanes(const T &v, size_t n) {
+        dr::detached_t<T> d = dr::detach<false>(v);
+        if (dr::width(d) != n)
+            d.resize(n);
+        return d;
+    }
+
+    /// An uninitialised array of n elements for the library to write into (allocated by .data()).
+    template <typename T>
+    static T outputs(size_t n) { return dr::empty<T>(n); }
+
+    /// The bytes of an evaluated LLVM mask: Dr.Jit stores a Bool lane as one byte, 0 or 1
+    /// (the layout lq_*_soa take as `active`).
+    static const uint8_t *mask_bytes(MaskJ &m) {
+        static_assert(sizeof(bool) == 1, "Dr.Jit LLVM masks are one byte per lane");
+        return reinterpret_cast<const uint8_t *>(m.data());
     }
 
     /// Interleaves k arrays (width n or 1) into one evaluated array of k*n values.

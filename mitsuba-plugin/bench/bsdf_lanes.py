@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""ns per lane of BSDF.eval and BSDF.sample in llvm_ad_rgb: the lacquer plugin against Mitsuba's
+built-in BSDF for the same material (GGX gold alpha 0.2: roughconductor; Lambert: diffuse), on
+the same evaluated arrays of N lanes (default 1e6). A call is timed from the method call to its
+outputs being evaluated (dr.eval + dr.sync_thread); the inputs are evaluated beforehand. The
+first call of each configuration (kernel compilation) is not timed; the minimum over --repeat
+calls is reported.
+
+Run (after mitsuba-plugin/build.sh; needs DRJIT_LIBLLVM_PATH, see test.sh):
+    .venv-mitsuba/bin/python mitsuba-plugin/bench/bsdf_lanes.py [--lanes 1000000 --repeat 10]
+Prints a Markdown table; --json PATH also writes the figures.
+"""
+
+import argparse
+import json
+import os
+import time
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+AU_ETA = [0.143119, 0.374957, 1.44248]
+AU_K = [3.98316, 2.38572, 1.60322]
+MATERIALS = {
+    "ggx_gold": ({"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.2, "alpha_v": 0.2,
+                  "eta": AU_ETA, "k": AU_K},
+                 {"type": "roughconductor", "distribution": "ggx", "alpha": 0.2,
+                  "eta": {"type": "rgb", "value": AU_ETA}, "k": {"type": "rgb", "value": AU_K}}),
+    "lambert": ({"model": "lambert", "albedo": [0.7, 0.5, 0.3]},
+                {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.7, 0.5, 0.3]}}),
+}
+
+
+def hemisphere(rng, n):
+    """Directions on the upper hemisphere, uniform in solid angle."""
+    z = rng.random(n, dtype=np.float32)
+    phi = rng.random(n, dtype=np.float32) * np.float32(2 * np.pi)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return mi.Vector3f(mi.Float(r * np.cos(phi)), mi.Float(r * np.sin(phi)), mi.Float(z))
+
+
+def timed(fn, repeat):
+    fn()  # compiles the kernels
+    best = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--lanes", type=int, default=1_000_000)
+    ap.add_argument("--repeat", type=int, default=10)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+
+    mi.set_variant("llvm_ad_rgb")
+    import lacquer_mitsuba
+    lacquer_mitsuba.register(fallback=False)
+
+    n = args.lanes
+    rng = np.random.default_rng(1)
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = hemisphere(rng, n)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    wo = hemisphere(rng, n)
+    s1 = mi.Float(rng.random(n, dtype=np.float32))
+    s2 = mi.Point2f(mi.Float(rng.random(n, dtype=np.float32)), mi.Float(rng.random(n, dtype=np.float32)))
+    active = mi.Bool(True)
+    dr.eval(si, wo, s1, s2)
+    dr.sync_thread()
+    ctx = mi.BSDFContext()
+
+    rows = []
+    for name, (ours, builtin) in MATERIALS.items():
+        bsdfs = {"lacquer": mi.load_dict({"type": "lacquer", "material": json.dumps(ours)}),
+                 "built-in": mi.load_dict(builtin)}
+        row = {"material": name}
+        for key, bsdf in bsdfs.items():
+            def ev(b=bsdf):
+                v = b.eval(ctx, si, wo, active)
+                dr.eval(v)
+                dr.sync_thread()
+
+            def sa(b=bsdf):
+                bs, w = b.sample(ctx, si, s1, s2, active)
+                dr.eval(bs.wo, bs.pdf, bs.sampled_type, bs.sampled_component, w)
+                dr.sync_thread()
+
+            row[f"{key} eval"] = timed(ev, args.repeat) / n * 1e9
+            row[f"{key} sample"] = timed(sa, args.repeat) / n * 1e9
+        rows.append(row)
+        print(row, flush=True)
+
+    print(f"\nllvm_ad_rgb, {n} lanes, {dr.thread_count()} Dr.Jit threads, min of {args.repeat}; "
+          f"load average after: {os.getloadavg()[0]:.1f}")
+    print("| material | eval: lacquer | eval: built-in | ratio | sample: lacquer | sample: built-in | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['material']} | {r['lacquer eval']:.1f} | {r['built-in eval']:.1f} | "
+              f"{r['lacquer eval'] / r['built-in eval']:.2f} | {r['lacquer sample']:.1f} | "
+              f"{r['built-in sample']:.1f} | {r['lacquer sample'] / r['built-in sample']:.2f} |")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"lanes": n, "repeat": args.repeat, "threads": dr.thread_count(),
+                       "load_average_after": os.getloadavg(), "rows": rows}, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
