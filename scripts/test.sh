@@ -73,6 +73,14 @@ cargo test --workspace -- --skip every_model_passes_its_claims --skip every_pres
 step "lacquer check --all --profile ci (release build)"
 cargo run --release -q -p lacquer-cli -- check --all --profile ci
 
+# Smoke runs of the speed tooling (the full runs are documented commands, not CI steps):
+# lacquer bench on a lane model and a scalar one, the speed-vs-error report and the side-by-side
+# comparison with Mitsuba 3 at n = 1e5 (docs/speed.md).
+step "speed tooling smoke: lacquer bench --quick, bench --report --quick, bench --max-error"
+cargo run --release -q -p lacquer-cli -- bench --quick --model rough_conductor >/dev/null
+cargo run --release -q -p lacquer-cli -- bench --report --quick >/dev/null
+cargo run --release -q -p lacquer-cli -- bench --quick --preset solid_red --max-error 1e-3
+
 step "Python cross-language tests: EXR read back with OpenImageIO, fits of Mitsuba-sampled tables (pytest)"
 cargo build --release -q -p lacquer-cli
 venv="$(bash scripts/python-env.sh)"
@@ -82,6 +90,9 @@ export LACQUER_VENV="$venv"  # the Mitsuba plugin's tests share the pinned test 
 for extra in c-api/test.sh mitsuba-plugin/test.sh blender-addon/test.sh; do
   [ -f "$extra" ] || { echo "sub-suite $extra is missing: a missing suite fails CI" >&2; exit 1; }
 done
+step "bench/vs_mitsuba.py --quick (Lacquer C ABI vs Mitsuba 3 built-ins, smoke)"
+python3 bench/vs_mitsuba.py --quick >/dev/null
+
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
 step "mitsuba-plugin/test.sh"

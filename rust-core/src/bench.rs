@@ -285,12 +285,14 @@ fn with_override(m: &Material, patch: &str) -> Option<Material> {
     let patch: serde_json::Value = serde_json::from_str(patch).ok()?;
     let (obj, p) = (json.as_object_mut()?, patch.as_object()?);
     for (k, v) in p {
-        if !obj.contains_key(k) || obj.get(k) == Some(v) {
-            return None; // not a parameter of this material, or already at that value
+        if !obj.contains_key(k) {
+            return None; // not a parameter of this material
         }
         obj.insert(k.clone(), v.clone());
     }
-    Material::from_value(&json).ok()
+    let next = Material::from_value(&json).ok()?;
+    // Already at that value: not a different configuration.
+    (next.to_json() != m.to_json()).then_some(next)
 }
 
 fn time_batch_eval(m: &Material, inp: &Inputs, reps: usize) -> f64 {
