@@ -20,6 +20,10 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.4, "alpha_v": 0.4, "multiple_scattering": true, "material": "Al"}"#,
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.3, "alpha_v": 0.3, "sample_visible": false}"#,
     r#"{"model": "ward", "alpha_x": 0.2, "alpha_y": 0.3}"#,
+    r#"{"model": "coated_paint", "flake_density": 8, "flake_material": "Au", "base_color": [0.4, 0.25, 0.05]}"#,
+    r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 8, "coat_absorption": [2, 4, 8]}"#,
+    r#"{"model": "coated_paint", "coat_roughness": 0.15, "flake_density": 5, "pearl_density": 10, "pearl_film_nm": 300, "base_metallic": 0.5}"#,
+    r#"{"model": "coated_paint", "flake_density": 0, "coat_roughness": 0, "base_color": 1.0}"#,
 ];
 
 /// Random directions (both hemispheres, not unit), hard cases (grazing to 1e-7, normal, wi = ±wo,

@@ -125,6 +125,12 @@ pub trait Lanes:
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
     fn sin_cos_(self) -> (Self, Self);
+    /// The complementary error function `1 − erf(x)`: the f32 polynomial of
+    /// [`poly::erfc_f32`] for SIMD lanes; the scalar types keep [`crate::special::erfc`].
+    #[inline(always)]
+    fn erfc_(self) -> Self {
+        poly::erfc_f32(self)
+    }
 
     /// An `f64` constant or parameter in every lane (rounded to the lane precision).
     #[inline(always)]
@@ -227,6 +233,10 @@ impl<T: Real> Lanes for T {
     fn sin_cos_(self) -> (Self, Self) {
         num_traits::Float::sin_cos(self)
     }
+    #[inline(always)]
+    fn erfc_(self) -> Self {
+        crate::special::erfc(self)
+    }
 }
 
 /// Square root.
@@ -278,6 +288,11 @@ pub fn exp<L: Lanes>(x: L) -> L {
 #[inline(always)]
 pub fn sin_cos<L: Lanes>(x: L) -> (L, L) {
     x.sin_cos_()
+}
+/// `erfc(x) = 1 − erf(x)`.
+#[inline(always)]
+pub fn erfc<L: Lanes>(x: L) -> L {
+    x.erfc_()
 }
 /// `|x|` with the sign of `sign`.
 #[inline(always)]
