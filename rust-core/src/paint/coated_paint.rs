@@ -318,14 +318,16 @@ impl CoatedPaint {
         self.sparkle_layer.as_ref()
     }
 
-    /// The basecoat evaluated with the sparkle multipliers of the binder half vector at `at`.
+    /// `f` with the sparkle multipliers of the binder half vector at `at` (the basecoat sees
+    /// the directions refracted into the coat).
     #[inline]
-    fn base_eval_at<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
-        let (metal, pearl) = match crate::frame::half_vector(wi, wo) {
+    fn eval_sparkle<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let (metal, pearl) = match crate::frame::half_vector(wi_in, wo_in) {
             Some(h) => sparkle.multipliers(h.cast::<f64>(), at),
             None => (1.0, 1.0),
         };
-        self.base.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
+        self.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
     }
 
     /// A sample of `wo` weighted with the BRDF `f` (the sparkle version of the lobe).
@@ -351,7 +353,7 @@ impl CoatedPaint {
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
         [
             Rgb::splat(self.coat.reflection_eval(wi, wo)),
-            self.layer_term(wi, wo, |a, b| self.base.eval(a, b)),
+            self.layer_term(wi, wo, T::one(), T::one()),
             self.multiple_term(wi, wo),
         ]
     }
@@ -371,14 +373,15 @@ impl CoatedPaint {
         [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third]
     }
 
-    /// The single-scatter layer term with a basecoat evaluator (mean lobe or sparkle).
+    /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
+    /// `pearl_scale` (1 for the mean lobe, the sparkle multipliers otherwise).
     #[inline(always)]
-    fn layer_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, base_eval: impl Fn(Vec3<T>, Vec3<T>) -> Rgb<T>) -> Rgb<T> {
+    fn layer_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let (ti, to) = (self.coat.transmittance(wi.z), self.coat.transmittance(wo.z));
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / T::c(self.coat.ior * self.coat.ior);
-        let mut f = base_eval(wi_in, wo_in) * scale;
+        let mut f = self.base.eval_scaled(wi_in, wo_in, metal_scale, pearl_scale) * scale;
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
@@ -394,16 +397,11 @@ impl CoatedPaint {
         Rgb::new(a[0] * b[0] * n[0], a[1] * b[1] * n[1], a[2] * b[2] * n[2])
     }
 
-    /// Evaluation with a custom basecoat evaluator (the sparkle layer plugs in here).
+    /// Evaluation with the flake populations scaled (the sparkle layer plugs in here).
     #[inline(always)]
-    pub(crate) fn eval_with<T: Lanes>(
-        &self,
-        wi: Vec3<T>,
-        wo: Vec3<T>,
-        base_eval: impl Fn(Vec3<T>, Vec3<T>) -> Rgb<T>,
-    ) -> Rgb<T> {
+    pub(crate) fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let top = self.coat.reflection_eval(wi, wo);
-        Rgb::splat(top) + self.layer_term(wi, wo, base_eval) + self.multiple_term(wi, wo)
+        Rgb::splat(top) + self.layer_term(wi, wo, metal_scale, pearl_scale) + self.multiple_term(wi, wo)
     }
 
     /// The mixture density for `wo`'s lobe-selection weights `s`.
@@ -528,7 +526,7 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
 impl LaneBxdf for CoatedPaint {
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        self.eval_with(wi, wo, |a, b| self.base.eval(a, b))
+        self.eval_scaled(wi, wo, L::c(1.0), L::c(1.0))
     }
 
     #[inline(always)]
@@ -576,7 +574,7 @@ impl Bxdf for CoatedPaint {
     #[inline]
     fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
         match &self.sparkle_layer {
-            Some(s) if at.is_finite() => self.eval_with(wi, wo, |a, b| self.base_eval_at(s, a, b, at)),
+            Some(s) if at.is_finite() => self.eval_sparkle(s, wi, wo, at),
             _ => self.eval(wi, wo),
         }
     }
@@ -631,7 +629,7 @@ mod tests {
         let n = Vec3::new(0.0f64, 0.0, 1.0);
         let f0 = 0.04f64;
         let expect = (1.0 - f0).powi(2) / 2.25 / std::f64::consts::PI;
-        let got = p.layer_term(n, n, |a, b| p.base.eval(a, b));
+        let got = p.layer_term(n, n, 1.0, 1.0);
         assert!((got.r - expect).abs() < 1e-12, "{} vs {expect}", got.r);
     }
 }
