@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 3
+#define LQ_ABI_VERSION_MINOR 4
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -496,6 +496,109 @@ lq_status lq_sample_one(const lq_material *m,
                         float *weight_rgb,
                         float *pdf,
                         uint32_t *flags);
+
+/**
+ * `lq_eval` on structure-of-arrays inputs and outputs: element i is
+ * `(wi_x[i], wi_y[i], wi_z[i])`, its value `(f_r[i], f_g[i], f_b[i])`. `active`: NULL (all
+ * elements) or n bytes, 0 = inactive: an inactive element is not read for validation and its
+ * outputs are set to 0. Same statuses and per-element policy as `lq_eval`. Runs the SIMD
+ * kernels (AVX-512 or AVX2 detected at run time) and, for n ≥ 32768, several threads (see
+ * `lq_set_thread_count`).
+ *
+ * # Safety
+ * `m` is NULL or a live handle; every non-NULL array holds `n` values, 4-byte aligned.
+ */
+LQ_MUST_USE
+lq_status lq_eval_soa(const lq_material *m,
+                      size_t n,
+                      const float *wi_x,
+                      const float *wi_y,
+                      const float *wi_z,
+                      const float *wo_x,
+                      const float *wo_y,
+                      const float *wo_z,
+                      const uint8_t *active,
+                      float *f_r,
+                      float *f_g,
+                      float *f_b);
+
+/**
+ * `lq_pdf` on structure-of-arrays inputs (see `lq_eval_soa`); `pdf`: n floats.
+ *
+ * # Safety
+ * As `lq_eval_soa`.
+ */
+LQ_MUST_USE
+lq_status lq_pdf_soa(const lq_material *m,
+                     size_t n,
+                     const float *wi_x,
+                     const float *wi_y,
+                     const float *wi_z,
+                     const float *wo_x,
+                     const float *wo_y,
+                     const float *wo_z,
+                     const uint8_t *active,
+                     float *pdf);
+
+/**
+ * `lq_eval_pdf` on structure-of-arrays inputs (see `lq_eval_soa`).
+ *
+ * # Safety
+ * As `lq_eval_soa`.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_soa(const lq_material *m,
+                          size_t n,
+                          const float *wi_x,
+                          const float *wi_y,
+                          const float *wi_z,
+                          const float *wo_x,
+                          const float *wo_y,
+                          const float *wo_z,
+                          const uint8_t *active,
+                          float *f_r,
+                          float *f_g,
+                          float *f_b,
+                          float *pdf);
+
+/**
+ * `lq_sample` on structure-of-arrays inputs and outputs (see `lq_eval_soa`): `u0` picks the
+ * lobe, `u1`, `u2` the direction; writes `wi_*`, `w_*` (weight) and `pdf`; `flags` (NULL or
+ * n values) as in `lq_sample_f64`. Inactive elements get zero outputs and flags 0.
+ *
+ * # Safety
+ * As `lq_eval_soa`; `flags` is NULL or holds n 4-byte aligned values.
+ */
+LQ_MUST_USE
+lq_status lq_sample_soa(const lq_material *m,
+                        size_t n,
+                        const float *wo_x,
+                        const float *wo_y,
+                        const float *wo_z,
+                        const float *u0,
+                        const float *u1,
+                        const float *u2,
+                        const uint8_t *active,
+                        float *wi_x,
+                        float *wi_y,
+                        float *wi_z,
+                        float *w_r,
+                        float *w_g,
+                        float *w_b,
+                        float *pdf,
+                        uint32_t *flags);
+
+/**
+ * Limits the threads a large batch call (n ≥ 32768) uses: 1 runs every call on the calling
+ * thread, 0 (the default) uses every core. Process-wide; results do not depend on it.
+ */
+void lq_set_thread_count(uint32_t n);
+
+/**
+ * The instruction set the batch kernels use on this CPU: "avx512", "avx2" or "scalar"
+ * (static string). `LACQUER_SIMD=scalar|avx2` in the environment lowers it.
+ */
+const char *lq_simd_level(void);
 
 /**
  * Every registered model as a JSON array (what `lacquer models --json` prints): name,

@@ -52,7 +52,7 @@ impl<const N: usize> Batch<N> {
             };
         }
         let addr = ptr as usize;
-        if addr % std::mem::align_of::<T>() != 0 {
+        if !addr.is_multiple_of(std::mem::align_of::<T>()) {
             return Err(misaligned(name, addr, std::mem::align_of::<T>()));
         }
         let bytes = match self.n.checked_mul(std::mem::size_of::<[T; K]>()) {

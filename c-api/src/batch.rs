@@ -742,7 +742,7 @@ fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
     if p.is_null() {
         return Err(Failure::null(name));
     }
-    if (p as usize) % std::mem::align_of::<T>() != 0 {
+    if !(p as usize).is_multiple_of(std::mem::align_of::<T>()) {
         return Err(Failure::invalid(format!(
             "array `{name}` at {:#x} is not aligned to {} bytes",
             p as usize,

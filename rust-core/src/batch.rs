@@ -424,8 +424,9 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
     if !off_unit.any() {
         return (w, usable); // the common case: unit directions cost no square root
     }
-    let scale = lanes::select(off_unit, L::c(1.0) / lanes::sqrt(l2), L::c(1.0));
-    (w * scale, usable)
+    // `w / |w|` as `Material` computes it, so the f64 batch path is bit-identical to it.
+    let len = lanes::select(off_unit, lanes::sqrt(l2), L::c(1.0));
+    (w / len, usable)
 }
 
 const UP: [f64; 3] = [0.0, 0.0, 1.0];

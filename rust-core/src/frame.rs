@@ -121,7 +121,7 @@ pub fn half_vector_masked<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>) -> (Vec3<T>, T::Ma
     let h = wi + wo;
     let len2 = h.length_squared();
     let defined = lanes::gt(len2, T::c(0.0)) & lanes::is_finite(len2);
-    (h / lanes::sqrt(len2), defined)
+    (h * lanes::rsqrt_fast(len2), defined)
 }
 
 /// Builds a unit direction from spherical coordinates.

@@ -63,7 +63,7 @@ impl<T: Lanes> Vec3<T> {
     #[inline(always)]
     #[must_use]
     pub fn normalize(self) -> Self {
-        self * (T::c(1.0) / self.length())
+        self * lanes::rsqrt_fast(self.length_squared())
     }
     /// Per lane: every component is finite.
     #[inline(always)]

@@ -96,7 +96,7 @@ impl<T: Lanes> Microfacet<T> {
         let d = match self.kind {
             DistributionKind::Ggx => {
                 let t = sx * sx + sy * sy + z2;
-                T::c(1.0) / (pi * ax * ay * t * t)
+                lanes::div_fast(T::c(1.0), pi * ax * ay * t * t)
             }
             DistributionKind::Beckmann => {
                 let e = (sx * sx + sy * sy) / z2;
@@ -134,7 +134,7 @@ impl<T: Lanes> Microfacet<T> {
             DistributionKind::Ggx => {
                 let z = w.z;
                 let a2_sin2 = sqr(self.alpha_x * w.x) + sqr(self.alpha_y * w.y);
-                keep(gt(z, T::c(0.0)), T::c(2.0) * z / (z + lanes::sqrt(z * z + a2_sin2)))
+                keep(gt(z, T::c(0.0)), lanes::div_fast(T::c(2.0) * z, z + lanes::sqrt(z * z + a2_sin2)))
             }
             DistributionKind::Beckmann => T::c(1.0) / (T::c(1.0) + self.lambda(w)),
         };
@@ -238,7 +238,7 @@ impl<T: Lanes> Microfacet<T> {
         let oh = wo.dot(h);
         let ok = defined & gt(oh, T::c(0.0)) & gt(wo.z, T::c(0.0));
         let pdf = if visible {
-            self.g1(wo, h) * self.d(h) / (T::c(4.0) * wo.z)
+            lanes::div_fast(self.g1(wo, h) * self.d(h), T::c(4.0) * wo.z)
         } else {
             self.d(h) * lanes::max(h.z, T::c(0.0)) / (T::c(4.0) * oh)
         };

@@ -20,6 +20,12 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.4, "alpha_v": 0.4, "multiple_scattering": true, "material": "Al"}"#,
     r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.3, "alpha_v": 0.3, "sample_visible": false}"#,
     r#"{"model": "ward", "alpha_x": 0.2, "alpha_y": 0.3}"#,
+    r#"{"model": "rough_plastic", "distribution": "ggx", "alpha": 0.2, "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": [0.2, 0.4, 0.7]}"#,
+    r#"{"model": "rough_plastic", "alpha": 0.3, "diffuse_reflectance": [0.9, 0.3, 0.05], "nonlinear": true}"#,
+    r#"{"model": "rough_plastic", "distribution": "ggx", "alpha": 0.05, "int_ior": 1.0, "ext_ior": 1.5, "sample_visible": false}"#,
+    r#"{"model": "cook_torrance"}"#,
+    r#"{"model": "cook_torrance", "kd": 0.3, "ks": 0.7, "alpha": 0.2, "masking": "smith_separable", "eta": [0.2, 0.4, 1.4], "k": [3.9, 2.4, 1.6]}"#,
+    r#"{"model": "cook_torrance", "kd": 0.0, "ks": 1.0, "alpha": 0.5, "distribution": "beckmann", "masking": "vgroove", "eta": 0.2, "k": 5.0, "multiple_scattering": true}"#,
     r#"{"model": "coated_paint", "flake_density": 8, "flake_material": "Au", "base_color": [0.4, 0.25, 0.05]}"#,
     r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 8, "coat_absorption": [2, 4, 8]}"#,
     r#"{"model": "coated_paint", "coat_roughness": 0.15, "flake_density": 5, "pearl_density": 10, "pearl_film_nm": 300, "base_metallic": 0.5}"#,
@@ -101,8 +107,8 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
                 let a = Vec3::new(wi[i][0], wi[i][1], wi[i][2]);
                 let b = Vec3::new(wo[i][0], wo[i][1], wo[i][2]);
                 let got = [f[0][i], f[1][i], f[2][i]];
-                let bad = !(a.length_squared() > 0.0 && a.length_squared().is_finite())
-                    || !(b.length_squared() > 0.0 && b.length_squared().is_finite());
+                let usable = |w: Vec3<f32>| w.length_squared() > 0.0 && w.length_squared().is_finite();
+                let bad = !(usable(a) && usable(b));
                 if active[i] == 0 || bad {
                     invalid += usize::from(active[i] != 0);
                     assert_eq!((got, pdf[i]), ([0.0; 3], 0.0), "{json} {level:?} element {i} (inactive or invalid)");

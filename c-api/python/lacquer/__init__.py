@@ -53,6 +53,8 @@ __all__ = [
     "render",
     "CancelledError",
     "abi_version",
+    "set_thread_count",
+    "simd_level",
     "library_path",
     "LQ_SAMPLE_DELTA",
     "LQ_SAMPLE_FAILED",
@@ -424,6 +426,19 @@ def presets() -> list:
     out = c_void_p()
     _check(_native.lib.lq_presets_json(byref(out)))
     return _json.loads(_native.take_string(out))
+
+
+def set_thread_count(n: int) -> None:
+    """Threads a large batch call (n >= 32768) uses: 1 = the calling thread only, 0 = every
+    core (the default). Process-wide; results do not depend on it. Batch calls release the GIL."""
+    if n < 0:
+        raise ValueError("thread count must be >= 0")
+    _native.lib.lq_set_thread_count(int(n))
+
+
+def simd_level() -> str:
+    """The instruction set the batch kernels use on this CPU: "avx512", "avx2" or "scalar"."""
+    return _native.lib.lq_simd_level().decode()
 
 
 def check_model(name: str, level: Union[str, int] = "quick") -> CheckResult:

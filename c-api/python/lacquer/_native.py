@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 3
+ABI_MINOR = 4
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -64,6 +64,8 @@ PROGRESS_FN = CFUNCTYPE(c_bool, c_float, c_void_p)
 _SIGNATURES = {
     "lq_abi_version": (c_uint32, []),
     "lq_version": (c_char_p, []),
+    "lq_set_thread_count": (None, [c_uint32]),
+    "lq_simd_level": (c_char_p, []),
     "lq_last_error": (c_char_p, []),
     "lq_status_name": (c_char_p, [c_int32]),
     "lq_string_free": (None, [c_void_p]),

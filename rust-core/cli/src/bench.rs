@@ -37,6 +37,14 @@ pub struct BenchArgs {
     /// Machine-readable output.
     #[arg(long)]
     json: bool,
+    /// The speed-vs-error report: every model's f32 batch path against its f64 reference and
+    /// every approximation the library offers against the exact form (docs/speed-vs-error.md).
+    #[arg(long)]
+    report: bool,
+    /// Pick the cheapest configuration of the material whose maximum relative error of
+    /// f·cos θ against its f64 reference stays within this tolerance, and say which.
+    #[arg(long)]
+    max_error: Option<f64>,
 }
 
 fn materials(args: &BenchArgs) -> Result<Vec<(String, Material)>, String> {
@@ -80,6 +88,9 @@ fn print_table(name: &str, r: &BenchReport) {
 }
 
 pub fn run(args: BenchArgs) -> ExitCode {
+    if args.report {
+        return run_report(&args);
+    }
     let list = match materials(&args) {
         Ok(l) => l,
         Err(e) => {
@@ -95,6 +106,9 @@ pub fn run(args: BenchArgs) -> ExitCode {
     if !args.json {
         println!("CPU SIMD level: {} (batch kernels dispatch at run time)", SimdLevel::detect().name());
     }
+    if let Some(tol) = args.max_error {
+        return run_choose(&args, &list, tol);
+    }
     let mut reports = Vec::new();
     for (name, m) in &list {
         let r = measure(m, &cfg);
@@ -106,6 +120,64 @@ pub fn run(args: BenchArgs) -> ExitCode {
     if args.json {
         let doc = serde_json::json!({"simd_detected": SimdLevel::detect().name(), "materials": reports});
         println!("{}", serde_json::to_string_pretty(&doc).expect("serialisable"));
+    }
+    ExitCode::SUCCESS
+}
+
+fn run_report(args: &BenchArgs) -> ExitCode {
+    let n = if args.quick { 1 << 14 } else { args.n.min(1 << 18) };
+    let rows = lacquer::bench::speed_error_report(n);
+    if args.json {
+        let doc = serde_json::json!({"simd": SimdLevel::detect().name(), "n": n, "rows": rows});
+        println!("{}", serde_json::to_string_pretty(&doc).expect("serialisable"));
+        return ExitCode::SUCCESS;
+    }
+    println!("Speed vs error ({n} random direction pairs; error of f·cos θi, relative, floor 1e-3 of the peak):\n");
+    println!("| model / approximation | comparison | ns fast | ns reference | max error | RMS error |");
+    println!("|---|---|---|---|---|---|");
+    for r in rows {
+        println!(
+            "| {} | {} | {:.1} | {:.1} | {:.2e} | {:.2e} |",
+            r.what, r.comparison, r.ns_fast, r.ns_reference, r.error.max, r.error.rms
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+fn run_choose(args: &BenchArgs, list: &[(String, Material)], tol: f64) -> ExitCode {
+    if tol.is_nan() || tol < 0.0 {
+        eprintln!("error: --max-error must be a non-negative number, got {tol}");
+        return ExitCode::from(2);
+    }
+    let n = if args.quick { 1 << 14 } else { args.n.min(1 << 18) };
+    let mut out = Vec::new();
+    for (name, m) in list {
+        let c = lacquer::bench::choose(m, tol, n);
+        if !args.json {
+            println!("\n{name}: tolerance {tol:e} on the maximum relative error of f·cos θi ({n} direction pairs)");
+            println!("| configuration | path | ns/eval | max error | RMS error | within |");
+            println!("|---|---|---|---|---|---|");
+            for k in &c.candidates {
+                println!(
+                    "| {} | {} | {:.2} | {:.2e} | {:.2e} | {} |",
+                    k.name,
+                    k.path,
+                    k.ns_per_eval,
+                    k.error.max,
+                    k.error.rms,
+                    if k.error.max <= tol { "yes" } else { "no" }
+                );
+            }
+            println!(
+                "picked: {} ({}), {:.2} ns/eval, max error {:.2e}",
+                c.picked.name, c.picked.path, c.picked.ns_per_eval, c.picked.error.max
+            );
+            println!("material: {}", c.picked.material);
+        }
+        out.push(serde_json::json!({"name": name, "choice": c}));
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out).expect("serialisable"));
     }
     ExitCode::SUCCESS
 }

@@ -214,7 +214,7 @@ fn best_split(prims: &[BuildPrim], slice: &[u32], bounds: &Aabb, cbounds: &Aabb)
             }
             let cost = TRAVERSAL_COST
                 + (acc.half_area() * cnt as f32 + right_area[split] * right_count[split] as f32) / parent_area;
-            if best.map_or(true, |(_, _, c)| cost < c) {
+            if best.is_none_or(|(_, _, c)| cost < c) {
                 best = Some((ax, split, cost));
             }
         }

@@ -121,6 +121,13 @@ pub trait Lanes:
     fn eq_(self, o: Self) -> Self::Mask;
     /// `m ? a : b` per lane.
     fn select_(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `self / o` where the divider limits throughput: exact for one lane; for SIMD lanes the
+    /// hardware reciprocal estimate refined by one Newton step (≤ 2 ulp for finite, non-zero
+    /// `o`; unspecified for `o = 0` or ±∞ — use it only where such lanes are masked out).
+    fn div_fast_(self, o: Self) -> Self;
+    /// `1/√self` likewise: exact for one lane, estimate + one Newton step (≤ 2 ulp) for SIMD
+    /// lanes, unspecified for 0 and ±∞.
+    fn rsqrt_fast_(self) -> Self;
     /// `e^x`.
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
@@ -238,6 +245,14 @@ impl<T: Real> Lanes for T {
         }
     }
     #[inline(always)]
+    fn div_fast_(self, o: Self) -> Self {
+        self / o
+    }
+    #[inline(always)]
+    fn rsqrt_fast_(self) -> Self {
+        T::one() / num_traits::Float::sqrt(self)
+    }
+    #[inline(always)]
     fn exp_(self) -> Self {
         num_traits::Float::exp(self)
     }
@@ -290,6 +305,17 @@ pub fn mul_add<L: Lanes>(a: L, b: L, c: L) -> L {
 #[inline(always)]
 pub fn sqr<L: Lanes>(x: L) -> L {
     x * x
+}
+/// `a / b` through the fast reciprocal on SIMD lanes (exact in one lane); see
+/// [`Lanes::div_fast_`] for the error and the inputs it excludes.
+#[inline(always)]
+pub fn div_fast<L: Lanes>(a: L, b: L) -> L {
+    a.div_fast_(b)
+}
+/// `1/√x` through the fast estimate on SIMD lanes (exact in one lane).
+#[inline(always)]
+pub fn rsqrt_fast<L: Lanes>(x: L) -> L {
+    x.rsqrt_fast_()
 }
 /// `e^x`.
 #[inline(always)]

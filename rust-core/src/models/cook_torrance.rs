@@ -41,11 +41,12 @@
 //! E. Heitz, "Understanding the Masking-Shadowing Function", JCGT 2014; C. Kulla, A. Conty,
 //! SIGGRAPH 2017 course.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
-use crate::frame::half_vector;
+use crate::frame::half_vector_masked;
 use crate::fresnel::{conductor, conductor_rgb};
+use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
@@ -154,61 +155,93 @@ pub struct CookTorrance {
 }
 
 impl CookTorrance {
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.alpha);
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        let a = T::c(self.alpha);
         Microfacet::new(self.distribution, a, a)
     }
 
-    /// Selection probability of the specular lobe for this `wo`.
-    fn specular_probability<T: Real>(&self, wo: Vec3<T>) -> T {
-        let f = conductor_rgb(wo.z, Rgb::from_array(self.eta), Rgb::from_array(self.k));
-        let ws = T::of(self.ks) * f.average();
-        let mut wc = T::of(self.kd) * Rgb::<T>::from_array(self.albedo).average();
-        if let Some(ms) = &self.ms {
-            wc += T::of(self.ks) * ms.albedo(wo);
-        }
-        if ws + wc > T::zero() {
-            ws / (ws + wc)
+    /// The Fresnel reflectance per channel; computed once when the three channels share the
+    /// same index (a material constant, e.g. the default dielectric η = 1.5).
+    #[inline(always)]
+    fn fresnel<L: Lanes>(&self, cos: L) -> Rgb<L> {
+        let (eta, k) = (self.eta, self.k);
+        if eta[0] == eta[1] && eta[0] == eta[2] && k[0] == k[1] && k[0] == k[2] {
+            Rgb::splat(conductor(cos, L::c(eta[0]), L::c(k[0])))
         } else {
-            T::zero()
+            conductor_rgb(cos, Rgb::from_array(eta), Rgb::from_array(k))
         }
+    }
+
+    /// Selection probability of the specular lobe for this `wo`.
+    #[inline(always)]
+    fn specular_probability<L: Lanes>(&self, wo: Vec3<L>) -> L {
+        let f = self.fresnel(wo.z);
+        // Rgb::average, written out for lanes.
+        let ws = L::c(self.ks) * ((f.r + f.g + f.b) / L::c(3.0));
+        let albedo = Rgb::<L>::from_array(self.albedo);
+        let mut wc = L::c(self.kd) * ((albedo.r + albedo.g + albedo.b) / L::c(3.0));
+        if let Some(ms) = &self.ms {
+            // The compensation albedo is tabulated in scalar form: one lane at a time.
+            wc += L::c(self.ks) * L::from_fn(|i| ms.albedo(lane_of(wo, i)));
+        }
+        let sum = ws + wc;
+        lanes::select(lanes::gt(sum, L::c(0.0)), ws / sum, L::c(0.0))
+    }
+
+    /// The pdf given the specular selection probability `ps`.
+    #[inline(always)]
+    fn pdf_with<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, ps: L) -> L {
+        ps * self.microfacet::<L>().reflection_pdf(wi, wo, true) + (L::c(1.0) - ps) * cosine_hemisphere_pdf(wi.z)
+    }
+}
+
+impl LaneBxdf for CookTorrance {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let mut f = Rgb::from_array(self.albedo) * (L::c(self.kd) * L::c(std::f64::consts::FRAC_1_PI));
+        let ks = L::c(self.ks);
+        if let Some(ms) = &self.ms {
+            // The compensation lobe is tabulated in scalar form: one lane at a time.
+            f += per_lane_rgb(wi, wo, |a, b| ms.eval(a, b)) * ks;
+        }
+        let (h, defined) = half_vector_masked(wi, wo);
+        let mf = self.microfacet::<L>();
+        let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
+        let fr = self.fresnel(wo.dot(h));
+        f + Rgb::select(defined, fr * (ks * dg / (L::c(4.0) * wi.z * wo.z)), Rgb::zero())
+    }
+
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        self.pdf_with(wi, wo, self.specular_probability(wo))
+    }
+
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let ps = self.specular_probability(wo);
+        let specular = lanes::lt(u[0], ps);
+        let (spec_wi, spec_ok) = self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], true);
+        let wi = Vec3::select(specular, spec_wi, cosine_hemisphere(u[1], u[2]));
+        let valid = spec_ok | !specular;
+        LaneSample::from_eval(wi, self.eval_lanes(wi, wo), self.pdf_with(wi, wo, ps), valid)
     }
 }
 
 impl Bxdf for CookTorrance {
     #[inline]
     fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let mut f = Rgb::from_array(self.albedo) * (T::of(self.kd) * T::inv_pi());
-        let ks = T::of(self.ks);
-        if let Some(ms) = &self.ms {
-            f += ms.eval(wi, wo) * ks;
-        }
-        let Some(h) = half_vector(wi, wo) else {
-            return f;
-        };
-        let mf = self.microfacet::<T>();
-        let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
-        let fr = conductor_rgb(wo.dot(h), Rgb::from_array(self.eta), Rgb::from_array(self.k));
-        f + fr * (ks * dg / (T::of(4.0) * wi.z * wo.z))
+        self.eval_lanes(wi, wo)
     }
 
     #[inline]
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let ps = self.specular_probability(wo);
-        ps * self.microfacet::<T>().reflection_pdf(wi, wo, true)
-            + (T::one() - ps) * cosine_hemisphere_pdf(wi.z)
+        self.pdf_lanes(wi, wo)
     }
 
     #[inline]
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let ps = self.specular_probability(wo);
-        let wi = if u[0] < ps {
-            self.microfacet::<T>()
-                .sample_reflection(wo, u[1], u[2], true)?
-        } else {
-            cosine_hemisphere(u[1], u[2])
-        };
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        self.sample_lanes(wo, u).into_option()
     }
 }
 

@@ -163,7 +163,14 @@ impl Model {
     /// time behind the same batch entry points.
     #[must_use]
     pub fn has_lane_kernel(&self) -> bool {
-        matches!(self, Model::Lambert(_) | Model::RoughConductor(_) | Model::CoatedPaint(_))
+        matches!(
+            self,
+            Model::Lambert(_)
+                | Model::RoughConductor(_)
+                | Model::RoughPlastic(_)
+                | Model::CookTorrance(_)
+                | Model::CoatedPaint(_)
+        )
     }
 
     /// [`Model::eval`] per lane (unit, finite directions): zero where a direction is at or
@@ -181,6 +188,8 @@ impl Model {
         let f = match self {
             Model::Lambert(m) => m.eval_lanes(wi, wo),
             Model::RoughConductor(m) => m.eval_lanes(wi, wo),
+            Model::RoughPlastic(m) => m.eval_lanes(wi, wo),
+            Model::CookTorrance(m) => m.eval_lanes(wi, wo),
             Model::CoatedPaint(m) => m.eval_lanes(wi, wo),
             _ => per_lane_rgb(wi, wo, |a, b| self.eval(a, b)),
         };
@@ -199,6 +208,8 @@ impl Model {
         let pdf = match self {
             Model::Lambert(m) => m.pdf_lanes(wi, wo),
             Model::RoughConductor(m) => m.pdf_lanes(wi, wo),
+            Model::RoughPlastic(m) => m.pdf_lanes(wi, wo),
+            Model::CookTorrance(m) => m.pdf_lanes(wi, wo),
             Model::CoatedPaint(m) => m.pdf_lanes(wi, wo),
             _ => L::from_fn(|i| self.pdf(lane_of(wi, i), lane_of(wo, i))),
         };
@@ -214,6 +225,8 @@ impl Model {
         let s = match self {
             Model::Lambert(m) => m.sample_lanes(wo, u),
             Model::RoughConductor(m) => m.sample_lanes(wo, u),
+            Model::RoughPlastic(m) => m.sample_lanes(wo, u),
+            Model::CookTorrance(m) => m.sample_lanes(wo, u),
             Model::CoatedPaint(m) => m.sample_lanes(wo, u),
             _ => self.sample_per_lane(wo, u),
         };

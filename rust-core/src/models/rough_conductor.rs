@@ -231,7 +231,7 @@ impl RoughConductor {
         let mf = self.microfacet::<T>();
         let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
         let fr = conductor_rgb(wo.dot(h), Rgb::from_array(self.eta), Rgb::from_array(self.k));
-        Rgb::select(defined, fr * (dg / (T::c(4.0) * wi.z * wo.z)), Rgb::zero())
+        Rgb::select(defined, fr * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z), Rgb::zero())
     }
 }
 
@@ -268,7 +268,7 @@ impl LaneBxdf for RoughConductor {
             let om = wo.dot(m);
             let f = conductor_rgb(om, Rgb::from_array(self.eta), Rgb::from_array(self.k));
             let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
-            let pdf = mf.g1(wo, m) * mf.d(m) / (L::c(4.0) * wo.z);
+            let pdf = lanes::div_fast(mf.g1(wo, m) * mf.d(m), L::c(4.0) * wo.z);
             let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
             let valid = lanes::gt(wi.z, L::c(0.0))
                 & wi.finite_mask()

@@ -65,11 +65,12 @@
 //! (`eval_transmittance`, `eval_reflectance`); B. Walter et al., EGSR 2007; W. Jakob,
 //! *Mitsuba documentation*, `plastic` and `roughplastic`.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
+use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::{visible_normal_integral, NormalDomain, SlopeConic};
 use crate::error::Error;
-use crate::frame::{half_vector, reflect};
+use crate::frame::{half_vector_masked, reflect};
 use crate::fresnel::{dielectric, refracted_cos};
+use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
@@ -144,20 +145,29 @@ fn build(p: &Params) -> Result<Model, Error> {
     let eta = int_ior / ext_ior;
     let (diffuse, specular) = (p.color("diffuse_reflectance"), p.color("specular_reflectance"));
     let (d_mean, s_mean) = (mean(diffuse), mean(specular));
+    let tables = PlasticTables::cached(distribution, alpha, eta);
+    let nonlinear = p.boolean("nonlinear");
+    let fdr = tables.internal_reflectance;
+    // ρ'/(π η²) per channel, a constant of the material.
+    let diffuse_term = diffuse.map(|rho| {
+        let rho_prime = if nonlinear { rho / (1.0 - rho * fdr) } else { rho / (1.0 - fdr) };
+        rho_prime * std::f64::consts::FRAC_1_PI / (eta * eta)
+    });
     Ok(Model::RoughPlastic(RoughPlastic {
         distribution,
         alpha,
         eta,
         diffuse,
         specular,
-        nonlinear: p.boolean("nonlinear"),
+        nonlinear,
         sample_visible: p.boolean("sample_visible"),
         specular_sampling_weight: if d_mean + s_mean > 0.0 {
             s_mean / (d_mean + s_mean)
         } else {
             1.0
         },
-        tables: PlasticTables::cached(distribution, alpha, eta),
+        tables,
+        diffuse_term,
     }))
 }
 
@@ -296,10 +306,27 @@ impl PlasticTables {
     #[inline]
     #[must_use]
     pub fn lookup<T: Real>(&self, mu: T) -> T {
-        let x = mu.clamp_to(T::zero(), T::one()) * T::of((RES - 1) as f64);
-        let i = x.floor().to_usize().unwrap_or(0).min(RES - 2);
-        let w = x - T::of(i as f64);
-        let (v0, v1) = (T::of(self.transmittance[i]), T::of(self.transmittance[i + 1]));
+        self.lookup_lanes(mu)
+    }
+
+    /// [`PlasticTables::lookup`] per lane: the index and weight in lanes, the two node values
+    /// gathered one lane at a time (a table lookup; `Lanes` has no gather).
+    #[inline(always)]
+    #[must_use]
+    pub fn lookup_lanes<L: Lanes>(&self, mu: L) -> L {
+        const MAX_WIDTH: usize = 16;
+        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c((RES - 1) as f64);
+        let mut index = [0usize; MAX_WIDTH];
+        for (j, k) in index.iter_mut().enumerate().take(L::WIDTH) {
+            // x ≥ 0, so truncation is the floor (and no libm `floor` call on the scalar
+            // paths, which baseline x86-64 has no instruction for). NaN, which unit
+            // directions never give, maps to 0.
+            *k = (x.lane(j).f64() as usize).min(RES - 2);
+        }
+        let w = x - L::from_fn(|j| <L::Elem as Real>::of(index[j] as f64));
+        let v0 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j]]));
+        let v1 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j] + 1]));
         v0 + (v1 - v0) * w
     }
 }
@@ -325,73 +352,86 @@ pub struct RoughPlastic {
     pub specular_sampling_weight: f64,
     /// Interface tables.
     pub tables: Arc<PlasticTables>,
+    /// `ρ'/(π η²)` per channel: the substrate term is `diffuse_term · T(cos θi) T(cos θo)`.
+    pub diffuse_term: [f64; 3],
 }
 
 impl RoughPlastic {
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.alpha);
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        let a = T::c(self.alpha);
         Microfacet::new(self.distribution, a, a)
     }
 
     /// Mitsuba's probability of sampling the specular lobe, from `t_i = T(cos θo)`.
-    fn specular_probability<T: Real>(&self, wo: Vec3<T>) -> T {
-        let t = self.tables.lookup(wo.z);
-        let w = T::of(self.specular_sampling_weight);
-        let ps = (T::one() - t) * w;
-        let pd = t * (T::one() - w);
-        if ps + pd > T::zero() {
-            ps / (ps + pd)
-        } else {
-            T::one()
-        }
+    #[inline(always)]
+    fn specular_probability<L: Lanes>(&self, t_o: L) -> L {
+        let w = L::c(self.specular_sampling_weight);
+        let ps = (L::c(1.0) - t_o) * w;
+        let pd = t_o * (L::c(1.0) - w);
+        let sum = ps + pd;
+        lanes::select(lanes::gt(sum, L::c(0.0)), ps / sum, L::c(1.0))
     }
 
-    /// `ρ'` of the diffuse term.
-    fn substrate<T: Real>(&self) -> Rgb<T> {
-        let rho = Rgb::<T>::from_array(self.diffuse);
-        let fdr = T::of(self.tables.internal_reflectance);
-        if self.nonlinear {
-            rho.map(|r| r / (T::one() - r * fdr))
-        } else {
-            rho / (T::one() - fdr)
-        }
+    /// `f` given `t_o = T(cos θo)`.
+    #[inline(always)]
+    fn eval_with<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, t_o: L) -> Rgb<L> {
+        let diffuse = Rgb::from_array(self.diffuse_term) * (t_o * self.tables.lookup_lanes(wi.z));
+        let (h, defined) = half_vector_masked(wi, wo);
+        let mf = self.microfacet::<L>();
+        let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
+        let fr = dielectric(wo.dot(h), L::c(self.eta));
+        let spec = Rgb::from_array(self.specular) * (fr * dg / (L::c(4.0) * wi.z * wo.z));
+        diffuse + Rgb::select(defined, spec, Rgb::zero())
+    }
+
+    /// The pdf given the specular selection probability `ps`.
+    #[inline(always)]
+    fn pdf_with<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, ps: L) -> L {
+        let spec = self.microfacet::<L>().reflection_pdf(wi, wo, self.sample_visible);
+        ps * spec + (L::c(1.0) - ps) * cosine_hemisphere_pdf(wi.z)
+    }
+}
+
+impl LaneBxdf for RoughPlastic {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z))
+    }
+
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let ps = self.specular_probability(self.tables.lookup_lanes(wo.z));
+        self.pdf_with(wi, wo, ps)
+    }
+
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let t_o = self.tables.lookup_lanes(wo.z);
+        let ps = self.specular_probability(t_o);
+        let specular = lanes::lt(u[0], ps);
+        let (spec_wi, spec_ok) =
+            self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], self.sample_visible);
+        let wi = Vec3::select(specular, spec_wi, cosine_hemisphere(u[1], u[2]));
+        let valid = spec_ok | !specular;
+        LaneSample::from_eval(wi, self.eval_with(wi, wo, t_o), self.pdf_with(wi, wo, ps), valid)
     }
 }
 
 impl Bxdf for RoughPlastic {
     #[inline]
     fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let eta = T::of(self.eta);
-        let (ti, to) = (self.tables.lookup(wo.z), self.tables.lookup(wi.z));
-        let mut f = self.substrate::<T>() * (ti * to * T::inv_pi() / (eta * eta));
-        if let Some(h) = half_vector(wi, wo) {
-            let mf = self.microfacet::<T>();
-            let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
-            let fr = dielectric(wo.dot(h), eta);
-            f += Rgb::from_array(self.specular) * (fr * dg / (T::of(4.0) * wi.z * wo.z));
-        }
-        f
+        self.eval_lanes(wi, wo)
     }
 
     #[inline]
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let ps = self.specular_probability(wo);
-        ps * self
-            .microfacet::<T>()
-            .reflection_pdf(wi, wo, self.sample_visible)
-            + (T::one() - ps) * cosine_hemisphere_pdf(wi.z)
+        self.pdf_lanes(wi, wo)
     }
 
     #[inline]
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let ps = self.specular_probability(wo);
-        let wi = if u[0] < ps {
-            self.microfacet::<T>()
-                .sample_reflection(wo, u[1], u[2], self.sample_visible)?
-        } else {
-            cosine_hemisphere(u[1], u[2])
-        };
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        self.sample_lanes(wo, u).into_option()
     }
 }
 
