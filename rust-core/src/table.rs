@@ -47,6 +47,12 @@ impl MuTable {
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
+        if L::WIDTH == 1 {
+            // One lane (the scalar paths): one index for all three channels, interpolated in
+            // f64 as `eval` does (six clamped per-lane gathers cost the scalar paths ~2×).
+            let [a, b, c] = self.eval::<L::Elem>(mu.lane(0));
+            return [L::splat(a), L::splat(b), L::splat(c)];
+        }
         let last = self.values.len() - 1;
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last as f64);
         let i = lanes::min(x.floor_(), L::c((last - 1) as f64));

@@ -422,12 +422,19 @@ impl CoatedPaint {
         let selection = self.selection(wo.z);
         let pick = pick3(selection, u[0]);
         let [top, layer, multiple] = pick.lobe;
-        let w_top = self.coat.reflection_sample(wo, u[1], u[2]);
-        let wo_in = self.coat.refract_in(wo);
-        let (wi_in, base_ok) = self.base.sample_direction_masked(wo_in, [pick.u, u[1], u[2]], layer);
-        let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
-        let layer_ok = base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes;
-        let w_multiple = cosine_hemisphere(u[1], u[2]);
+        // Each lobe's sampler runs only when some lane chose it (for one lane: only the
+        // chosen one); lanes that did not choose it never read its result.
+        let normal = Vec3::from_f64(0.0, 0.0, 1.0);
+        let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
+        let (w_layer, layer_ok) = if layer.any() {
+            let wo_in = self.coat.refract_in(wo);
+            let (wi_in, base_ok) = self.base.sample_direction_masked(wo_in, [pick.u, u[1], u[2]], layer);
+            let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
+            (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
+        } else {
+            (normal, T::Mask::splat(false))
+        };
+        let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
         let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
         let valid = pick.valid & (top | (layer & layer_ok) | multiple);
         let delta = if self.coat.is_smooth() { top } else { T::Mask::splat(false) };
