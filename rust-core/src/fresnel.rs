@@ -67,7 +67,8 @@ pub fn schlick<T: Lanes>(cos_i: T, f0: T) -> T {
 #[inline(always)]
 #[must_use]
 pub fn schlick_rgb<T: Lanes>(cos_i: T, f0: Rgb<T>) -> Rgb<T> {
-    f0.map(|f| schlick(cos_i, f))
+    // Written out, not `f0.map(..)`: the closure was not inlined into the AVX-512 kernel.
+    Rgb::new(schlick(cos_i, f0.r), schlick(cos_i, f0.g), schlick(cos_i, f0.b))
 }
 
 /// The index of refraction whose normal-incidence reflectance is `f0` (the inverse of

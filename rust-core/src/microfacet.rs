@@ -14,7 +14,7 @@ use crate::frame::{cos2_theta, cos_theta, half_vector_masked};
 use crate::lanes::{self, eq, gt, keep, le, select, sqr, Lanes};
 use crate::math::Vec3;
 use crate::real::Real;
-use crate::special::{erfc, erfinv};
+use crate::special::erfinv;
 
 /// The shape of the microfacet normal distribution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -117,8 +117,7 @@ impl<T: Lanes> Microfacet<T> {
                 let t = a2_sin2 / cos2_theta(w);
                 t / (T::c(2.0) * (T::c(1.0) + lanes::sqrt(T::c(1.0) + t)))
             }
-            // erfc has no lane version yet: one lane at a time.
-            DistributionKind::Beckmann => T::from_fn(|i| beckmann_lambda(w.z.lane(i), a2_sin2.lane(i))),
+            DistributionKind::Beckmann => beckmann_lambda(w.z, a2_sin2),
         };
         let l = select(eq(a2_sin2, T::c(0.0)), T::c(0.0), l);
         select(le(w.z, T::c(0.0)), T::c(f64::INFINITY), l)
@@ -262,15 +261,14 @@ impl<T: Lanes> Microfacet<T> {
 }
 
 /// Beckmann's Λ from `cos θ` and `α² sin² θ` (> 0): with `a = 1/(α tan θ)`,
-/// `Λ = (e^{−a²}/(a√π) − erfc(a))/2`.
-#[inline]
-fn beckmann_lambda<T: Real>(cos_theta: T, a2_sin2: T) -> T {
-    let a = cos_theta / a2_sin2.sqrt();
-    if a > T::of(26.0) {
-        return T::zero();
-    }
-    let inv_sqrt_pi = T::FRAC_2_SQRT_PI() * T::of(0.5);
-    ((-a * a).exp() * inv_sqrt_pi / a - erfc(a)).max(T::zero()) * T::of(0.5)
+/// `Λ = (e^{−a²}/(a√π) − erfc(a))/2` (0 beyond `a = 26`). `erfc` is `special::erfc` in the
+/// scalar paths and the f32 polynomial in SIMD lanes ([`lanes::erfc`]).
+#[inline(always)]
+fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
+    let a = cos_theta / lanes::sqrt(a2_sin2);
+    let inv_sqrt_pi = T::c(0.5 * std::f64::consts::FRAC_2_SQRT_PI);
+    let l = lanes::max(lanes::exp(-a * a) * inv_sqrt_pi / a - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
+    keep(le(a, T::c(26.0)), l)
 }
 
 impl<T: Real> Microfacet<T> {

@@ -43,19 +43,26 @@ impl MuTable {
     }
 
     /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
-    /// table values gathered one lane at a time).
+    /// table values gathered per lane, with the hardware gather in SIMD lanes).
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
+        if L::WIDTH == 1 {
+            // One lane (the scalar paths): one index for all three channels, interpolated in
+            // f64 as `eval` does (six clamped per-lane gathers cost the scalar paths ~2×).
+            let [a, b, c] = self.eval::<L::Elem>(mu.lane(0));
+            return [L::splat(a), L::splat(b), L::splat(c)];
+        }
         let last = self.values.len() - 1;
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last as f64);
         let i = lanes::min(x.floor_(), L::c((last - 1) as f64));
         let t = x - i;
-        let index = |j: usize| (i.lane(j).f64() as usize).min(last - 1);
+        let flat = self.values.as_flattened();
+        let k = i * L::c(3.0);
         let mut out = [L::c(0.0); 3];
         for (c, o) in out.iter_mut().enumerate() {
-            let a = L::from_fn(|j| <L::Elem as Real>::of(self.values[index(j)][c]));
-            let b = L::from_fn(|j| <L::Elem as Real>::of(self.values[index(j) + 1][c]));
+            let a = L::gather_f64_(flat, k + L::c(c as f64));
+            let b = L::gather_f64_(flat, k + L::c((c + 3) as f64));
             *o = a + (b - a) * t;
         }
         out

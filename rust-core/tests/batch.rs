@@ -30,6 +30,10 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "cook_torrance"}"#,
     r#"{"model": "cook_torrance", "kd": 0.3, "ks": 0.7, "alpha": 0.2, "masking": "smith_separable", "eta": [0.2, 0.4, 1.4], "k": [3.9, 2.4, 1.6]}"#,
     r#"{"model": "cook_torrance", "kd": 0.0, "ks": 1.0, "alpha": 0.5, "distribution": "beckmann", "masking": "vgroove", "eta": 0.2, "k": 5.0, "multiple_scattering": true}"#,
+    r#"{"model": "coated_paint", "flake_density": 8, "flake_material": "Au", "base_color": [0.4, 0.25, 0.05]}"#,
+    r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 8, "coat_absorption": [2, 4, 8]}"#,
+    r#"{"model": "coated_paint", "coat_roughness": 0.15, "flake_density": 5, "pearl_density": 10, "pearl_film_nm": 300, "base_metallic": 0.5}"#,
+    r#"{"model": "coated_paint", "flake_density": 0, "coat_roughness": 0, "base_color": 1.0}"#,
 ];
 
 /// Random directions (both hemispheres, not unit), hard cases (grazing to 1e-7, normal, wi = ±wo,

@@ -132,6 +132,24 @@ pub trait Lanes:
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
     fn sin_cos_(self) -> (Self, Self);
+    /// `table[i]` per lane, rounded to the lane precision, for lanes `idx` holding integral
+    /// values; indices are clamped to the table (NaN reads entry 0). SIMD lanes use the
+    /// hardware gather.
+    #[inline(always)]
+    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+        let last = (table.len() - 1) as f64;
+        Self::from_fn(|i| {
+            let j = idx.lane(i).f64();
+            let j = if j > 0.0 { j.min(last) } else { 0.0 };
+            Self::Elem::of(table[j as usize])
+        })
+    }
+    /// The complementary error function `1 − erf(x)`: the f32 polynomial of
+    /// [`poly::erfc_f32`] for SIMD lanes; the scalar types keep [`crate::special::erfc`].
+    #[inline(always)]
+    fn erfc_(self) -> Self {
+        poly::erfc_f32(self)
+    }
 
     /// An `f64` constant or parameter in every lane (rounded to the lane precision).
     #[inline(always)]
@@ -242,6 +260,10 @@ impl<T: Real> Lanes for T {
     fn sin_cos_(self) -> (Self, Self) {
         num_traits::Float::sin_cos(self)
     }
+    #[inline(always)]
+    fn erfc_(self) -> Self {
+        crate::special::erfc(self)
+    }
 }
 
 /// Square root.
@@ -304,6 +326,11 @@ pub fn exp<L: Lanes>(x: L) -> L {
 #[inline(always)]
 pub fn sin_cos<L: Lanes>(x: L) -> (L, L) {
     x.sin_cos_()
+}
+/// `erfc(x) = 1 − erf(x)`.
+#[inline(always)]
+pub fn erfc<L: Lanes>(x: L) -> L {
+    x.erfc_()
 }
 /// `|x|` with the sign of `sign`.
 #[inline(always)]

@@ -355,6 +355,19 @@ impl Lanes for F32x8 {
     fn sin_cos_(self) -> (Self, Self) {
         poly::sin_cos_f32(self)
     }
+    #[inline(always)]
+    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+        let last = (table.len() - 1) as f32;
+        // max(NaN, 0) = 0 (the second operand), so every index is in bounds.
+        let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
+        // SAFETY: indices clamped to [0, len − 1] above; AVX2 per the module contract.
+        unsafe {
+            let j = _mm256_cvttps_epi32(j.0);
+            let lo = _mm256_i32gather_pd::<8>(table.as_ptr().cast(), _mm256_castsi256_si128(j));
+            let hi = _mm256_i32gather_pd::<8>(table.as_ptr().cast(), _mm256_extracti128_si256::<1>(j));
+            Self(_mm256_set_m128(_mm256_cvtpd_ps(hi), _mm256_cvtpd_ps(lo)))
+        }
+    }
 }
 
 impl Lanes for F32x16 {
@@ -466,6 +479,21 @@ impl Lanes for F32x16 {
     #[inline(always)]
     fn sin_cos_(self) -> (Self, Self) {
         poly::sin_cos_f32(self)
+    }
+    #[inline(always)]
+    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+        let last = (table.len() - 1) as f32;
+        // max(NaN, 0) = 0 (the second operand), so every index is in bounds.
+        let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
+        // SAFETY: indices clamped to [0, len − 1] above; AVX-512F per the module contract.
+        unsafe {
+            let j = _mm512_cvttps_epi32(j.0);
+            let lo = _mm512_i32gather_pd::<8>(_mm512_castsi512_si256(j), table.as_ptr().cast());
+            let hi = _mm512_i32gather_pd::<8>(_mm512_extracti64x4_epi64::<1>(j), table.as_ptr().cast());
+            let lo = _mm512_castps256_ps512(_mm512_cvtpd_ps(lo));
+            let both = _mm512_insertf64x4::<1>(_mm512_castps_pd(lo), _mm256_castps_pd(_mm512_cvtpd_ps(hi)));
+            Self(_mm512_castpd_ps(both))
+        }
     }
 }
 

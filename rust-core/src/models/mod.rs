@@ -170,6 +170,7 @@ impl Model {
                 | Model::RoughPlastic(_)
                 | Model::CookTorrance(_)
                 | Model::Principled(_)
+                | Model::CoatedPaint(_)
         )
     }
 
@@ -191,6 +192,7 @@ impl Model {
             Model::RoughPlastic(m) => m.eval_lanes(wi, wo),
             Model::CookTorrance(m) => m.eval_lanes(wi, wo),
             Model::Principled(m) => m.eval_lanes(wi, wo),
+            Model::CoatedPaint(m) => m.eval_lanes(wi, wo),
             _ => per_lane_rgb(wi, wo, |a, b| self.eval(a, b)),
         };
         Rgb::select(above, f, Rgb::zero())
@@ -211,6 +213,7 @@ impl Model {
             Model::RoughPlastic(m) => m.pdf_lanes(wi, wo),
             Model::CookTorrance(m) => m.pdf_lanes(wi, wo),
             Model::Principled(m) => m.pdf_lanes(wi, wo),
+            Model::CoatedPaint(m) => m.pdf_lanes(wi, wo),
             _ => L::from_fn(|i| self.pdf(lane_of(wi, i), lane_of(wo, i))),
         };
         lanes::keep(above, pdf)
@@ -228,6 +231,7 @@ impl Model {
             Model::RoughPlastic(m) => m.sample_lanes(wo, u),
             Model::CookTorrance(m) => m.sample_lanes(wo, u),
             Model::Principled(m) => m.sample_lanes(wo, u),
+            Model::CoatedPaint(m) => m.sample_lanes(wo, u),
             _ => self.sample_per_lane(wo, u),
         };
         let valid = s.valid

@@ -8,12 +8,15 @@
 //! energy-conserving when each lobe is.
 
 use super::flakes::FlakeLayer;
+use super::pick3;
 use crate::bxdf::BsdfSample;
+use crate::frame::half_vector_masked;
 use crate::fresnel;
+use crate::lanes::{self, keep, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, pick_lobe};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::table::MuTable;
 
 /// A GGX metallic base with Schlick Fresnel.
@@ -28,28 +31,30 @@ pub struct MetalBase {
 }
 
 impl MetalBase {
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.alpha);
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        let a = T::c(self.alpha);
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return Rgb::zero() };
+    #[inline(always)]
+    fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        if g == T::zero() {
-            return Rgb::zero();
-        }
-        fresnel::schlick_rgb(wi.dot(h), Rgb::from_array(self.f0))
-            * (T::of(self.weight) * mf.d(h) * g / (T::of(4.0) * wi.z * wo.z))
+        let f = fresnel::schlick_rgb(wi.dot(h), Rgb::from_array(self.f0))
+            * (T::c(self.weight) * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z));
+        Rgb::select(defined & lanes::gt(g, T::c(0.0)), f, Rgb::zero())
     }
 
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
-        self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h)
+    #[inline(always)]
+    fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        let (h, defined) = half_vector_masked(wi, wo);
+        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
-    fn sample_direction<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+    #[inline(always)]
+    fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
         crate::frame::reflect(wo, self.microfacet::<T>().sample_m(wo, u1, u2, true))
     }
 }
@@ -101,24 +106,24 @@ impl Basecoat {
     }
 
     /// Diffuse pigment term `ρ/π (w + c_p T_p(μi) T_p(μo))`.
-    #[inline]
-    fn pigment_eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let rho = Rgb::from_array(self.pigment) * T::inv_pi();
+    #[inline(always)]
+    fn pigment_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let rho = Rgb::from_array(self.pigment) * T::c(std::f64::consts::FRAC_1_PI);
         match &self.pearl_transmission {
-            None => rho * T::of(self.pigment_weight),
+            None => rho * T::c(self.pigment_weight),
             Some(t) => {
-                let (a, b) = (t.eval(wi.z), t.eval(wo.z));
-                let cp = T::of(self.pearl_coverage);
-                let w = T::of(self.pigment_weight);
+                let (a, b) = (t.eval_lanes(wi.z), t.eval_lanes(wo.z));
+                let cp = T::c(self.pearl_coverage);
+                let w = T::c(self.pigment_weight);
                 Rgb::new(rho.r * (w + cp * a[0] * b[0]), rho.g * (w + cp * a[1] * b[1]), rho.b * (w + cp * a[2] * b[2]))
             }
         }
     }
 
     /// `f_b(wi, wo)` with flake multipliers (1, 1 for the mean lobe).
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn eval_scaled<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+    pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let mut f = self.pigment_eval(wi, wo);
         if let Some(m) = &self.metal {
             f += m.eval(wi, wo);
@@ -130,21 +135,21 @@ impl Basecoat {
     }
 
     /// `f_b(wi, wo)`, the mean basecoat BRDF.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_scaled(wi, wo, T::one(), T::one())
+    pub fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_scaled(wi, wo, T::c(1.0), T::c(1.0))
     }
 
     /// Mixture density of [`Basecoat::sample_direction`].
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let [a, b, c] = self.selection.map(T::of);
-        let total = a + b + c;
-        if total <= T::zero() {
-            return T::zero();
+    pub fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        let [a, b, c] = self.selection.map(T::c);
+        if !(self.selection.iter().sum::<f64>() > 0.0) {
+            return T::c(0.0);
         }
+        let total = a + b + c;
         let mut p = a * cosine_hemisphere_pdf(wi.z);
         if let Some(m) = &self.metal {
             p += b * m.pdf(wi, wo);
@@ -159,13 +164,26 @@ impl Basecoat {
     #[inline]
     #[must_use]
     pub fn sample_direction<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<Vec3<T>> {
-        let weights = self.selection.map(T::of);
-        let (lobe, _) = pick_lobe(&weights, u[0])?;
-        Some(match lobe {
-            0 => cosine_hemisphere(u[1], u[2]),
-            1 => self.metal.as_ref()?.sample_direction(wo, u[1], u[2]),
-            _ => self.flakes.as_ref()?.sample_direction(wo, u[1], u[2]),
-        })
+        let (wi, valid) = self.sample_direction_masked(wo, u, true);
+        valid.then_some(wi)
+    }
+
+    /// [`Basecoat::sample_direction`] per lane: the direction and where a lobe was picked.
+    /// `active` marks the lanes whose result is used: the flake sampler, which runs one lane
+    /// at a time, skips the others.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u: [T; 3], active: T::Mask) -> (Vec3<T>, T::Mask) {
+        let pick = pick3(self.selection.map(T::c), u[0]);
+        let mut wi = cosine_hemisphere(u[1], u[2]);
+        if let Some(m) = &self.metal {
+            wi = Vec3::select(pick.lobe[1], m.sample_direction(wo, u[1], u[2]), wi);
+        }
+        if let Some(f) = &self.flakes {
+            let flake = pick.lobe[2];
+            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], active & flake), wi);
+        }
+        (wi, pick.valid)
     }
 
     /// A full sample of the basecoat alone (weight `f_b cos/pdf` with the mixture pdf).

@@ -5,7 +5,9 @@
 //! is approximated by that refraction with the energy `1 − E_top(μ)` its reflection leaves
 //! (Weidlich & Wilkie 2007), so that top reflection and transmission together conserve energy.
 
+use crate::frame::half_vector_masked;
 use crate::fresnel;
+use crate::lanes::{self, keep, Lanes};
 use crate::math::Vec3;
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
@@ -56,59 +58,58 @@ impl Coat {
         self.thickness_mm > 0.0 && self.absorption_per_mm.iter().any(|&a| a > 0.0)
     }
 
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.roughness);
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        let a = T::c(self.roughness);
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
     /// Energy the top surface reflects for incidence `μ`: `F(μ)` (smooth) or `E_top(μ)`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn reflectance<T: Real>(&self, mu: T) -> T {
+    pub fn reflectance<T: Lanes>(&self, mu: T) -> T {
         match &self.albedo {
-            None => fresnel::dielectric(mu, T::of(self.ior)),
-            Some(t) => t.eval(mu)[0],
+            None => fresnel::dielectric(mu, T::c(self.ior)),
+            Some(t) => t.eval_lanes(mu)[0],
         }
     }
 
     /// Energy that enters the coat from direction `μ`: `1 − reflectance`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn transmittance<T: Real>(&self, mu: T) -> T {
-        (T::one() - self.reflectance(mu)).max(T::zero())
+    pub fn transmittance<T: Lanes>(&self, mu: T) -> T {
+        lanes::max(T::c(1.0) - self.reflectance(mu), T::c(0.0))
     }
 
     /// The rough top reflection `F(wo·h) D(h) G(wi, wo) / (4 cos θi cos θo)` (0 when smooth).
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn reflection_eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+    pub fn reflection_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
         if self.is_smooth() {
-            return T::zero();
+            return T::c(0.0);
         }
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
+        let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        if g == T::zero() {
-            return T::zero();
-        }
-        fresnel::dielectric(wo.dot(h), T::of(self.ior)) * mf.d(h) * g / (T::of(4.0) * wi.z * wo.z)
+        let f = fresnel::dielectric(wo.dot(h), T::c(self.ior)) * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z);
+        keep(defined & lanes::gt(g, T::c(0.0)), f)
     }
 
     /// Density of [`Coat::reflection_sample`] (visible-normal sampling).
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn reflection_pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+    pub fn reflection_pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
         if self.is_smooth() {
-            return T::zero();
+            return T::c(0.0);
         }
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
-        self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h)
+        let (h, defined) = half_vector_masked(wi, wo);
+        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
     /// Samples the top reflection: the mirror direction when smooth, else a GGX visible normal.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn reflection_sample<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+    pub fn reflection_sample<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
         if self.is_smooth() {
             return crate::frame::mirror_z(wo);
         }
@@ -118,12 +119,13 @@ impl Coat {
 
     /// Direction inside the coat (pointing up, away from the base) of light that crossed the
     /// top surface along outside direction `w`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn refract_in<T: Real>(&self, w: Vec3<T>) -> Vec3<T> {
-        let eta = T::of(self.ior);
+    pub fn refract_in<T: Lanes>(&self, w: Vec3<T>) -> Vec3<T> {
+        let eta = T::c(self.ior);
         // cos²θ' = (η² − 1 + cos²θ)/η², written from z so it stays exact at η = 1 and grazing.
-        let z = ((eta * eta - T::one() + w.z * w.z).safe_sqrt() / eta).max(T::min_positive_value());
+        let tiny = T::splat(<T::Elem as num_traits::Float>::min_positive_value());
+        let z = lanes::max(lanes::safe_sqrt(eta * eta - T::c(1.0) + w.z * w.z) / eta, tiny);
         Vec3::new(w.x / eta, w.y / eta, z)
     }
 
@@ -132,29 +134,39 @@ impl Coat {
     #[inline]
     #[must_use]
     pub fn refract_out<T: Real>(&self, w: Vec3<T>) -> Option<Vec3<T>> {
-        let eta = T::of(self.ior);
+        let (v, ok) = self.refract_out_masked(w);
+        ok.then_some(v)
+    }
+
+    /// [`Coat::refract_out`] per lane: the direction and where it exists (no total internal
+    /// reflection; elsewhere the direction's z is 0).
+    #[inline(always)]
+    #[must_use]
+    pub fn refract_out_masked<T: Lanes>(&self, w: Vec3<T>) -> (Vec3<T>, T::Mask) {
+        let eta = T::c(self.ior);
         // cos²θ = 1 − η²(1 − cos²θ') = 1 − η² sin²θ'.
-        let c2 = T::one() - eta * eta * (T::one() - w.z * w.z);
-        (c2 > T::zero()).then(|| Vec3::new(w.x * eta, w.y * eta, c2.sqrt()))
+        let c2 = T::c(1.0) - eta * eta * (T::c(1.0) - w.z * w.z);
+        (Vec3::new(w.x * eta, w.y * eta, lanes::safe_sqrt(c2)), lanes::gt(c2, T::c(0.0)))
     }
 
     /// `dω_inside / dω_outside = cos θ / (η² cos θ')` for an outside direction with cosine
     /// `mu_out` and its refracted inside cosine `mu_in`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn solid_angle_ratio<T: Real>(&self, mu_out: T, mu_in: T) -> T {
-        mu_out / (T::of(self.ior * self.ior) * mu_in)
+    pub fn solid_angle_ratio<T: Lanes>(&self, mu_out: T, mu_in: T) -> T {
+        mu_out / (T::c(self.ior * self.ior) * mu_in)
     }
 
     /// Beer-Lambert transmittance of one crossing along an inside direction with cosine `mu_in`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn attenuation<T: Real>(&self, mu_in: T) -> [T; 3] {
+    pub fn attenuation<T: Lanes>(&self, mu_in: T) -> [T; 3] {
         if !self.absorbs() {
-            return [T::one(); 3];
+            return [T::c(1.0); 3];
         }
-        let path = T::of(self.thickness_mm) / mu_in.max(T::of(1e-6));
-        self.absorption_per_mm.map(|a| (-(T::of(a) * path)).exp())
+        let path = T::c(self.thickness_mm) / lanes::max(mu_in, T::c(1e-6));
+        let [a, b, c] = self.absorption_per_mm;
+        [lanes::exp(-(T::c(a) * path)), lanes::exp(-(T::c(b) * path)), lanes::exp(-(T::c(c) * path))]
     }
 
     /// Tabulates `E_top(μ) = ∫ F D G / (4 cos θo) dωi` with stratified visible-normal samples

@@ -77,16 +77,18 @@
 use super::basecoat::{Basecoat, MetalBase};
 use super::coat::Coat;
 use super::flakes::FlakeLayer;
+use super::pick3;
 use super::sparkle::Sparkle;
 use super::thin_film::ThinFilm;
-use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo, SurfacePoint};
+use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
 use crate::error::Error;
 use crate::fresnel;
+use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, pick_lobe};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::table::MuTable;
 
 const FLAKE_METALS: &[&str] = &["Al", "Ag", "Au", "Cu"];
@@ -316,29 +318,34 @@ impl CoatedPaint {
         self.sparkle_layer.as_ref()
     }
 
-    /// The basecoat evaluated with the sparkle multipliers of the binder half vector at `at`.
+    /// `f` with the sparkle multipliers of the binder half vector at `at` (the basecoat sees
+    /// the directions refracted into the coat).
     #[inline]
-    fn base_eval_at<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
-        let (metal, pearl) = match crate::frame::half_vector(wi, wo) {
+    fn eval_sparkle<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let (metal, pearl) = match crate::frame::half_vector(wi_in, wo_in) {
             Some(h) => sparkle.multipliers(h.cast::<f64>(), at),
             None => (1.0, 1.0),
         };
-        self.base.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
+        self.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
     }
 
-    /// A sample of `wo` weighted with the BRDF `f` (the mean lobe or its sparkle version).
+    /// A sample of `wo` weighted with the BRDF `f` (the sparkle version of the lobe).
     #[inline]
     fn sample_with<T: Real>(&self, wo: Vec3<T>, u: [T; 3], f: impl Fn(Vec3<T>) -> Rgb<T>) -> Option<BsdfSample<T>> {
-        let (wi, delta) = self.sample_direction(wo, u)?;
-        if delta {
-            let p = self.delta_probability(wo.z);
-            let weight = Rgb::splat(self.coat.reflectance(wo.z) / p);
-            return (p > T::zero()).then_some(BsdfSample { wi, weight, pdf: p, delta: true });
-        }
-        if wi.z <= T::zero() {
+        let d = self.sample_direction(wo, u);
+        if !d.valid {
             return None;
         }
-        BsdfSample::from_eval(wi, f(wi), self.pdf(wi, wo))
+        if d.delta {
+            let p = self.delta_probability(d.selection);
+            let weight = Rgb::splat(d.selection[0] / p);
+            return (p > T::zero()).then_some(BsdfSample { wi: d.wi, weight, pdf: p, delta: true });
+        }
+        if d.wi.z <= T::zero() {
+            return None;
+        }
+        BsdfSample::from_eval(d.wi, f(d.wi), self.pdf(d.wi, wo))
     }
 
     /// The three terms of `eval` separately: top reflection, single-scatter layer, multiple scatter.
@@ -346,7 +353,7 @@ impl CoatedPaint {
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
         [
             Rgb::splat(self.coat.reflection_eval(wi, wo)),
-            self.layer_term(wi, wo, |a, b| self.base.eval(a, b)),
+            self.layer_term(wi, wo, T::one(), T::one()),
             self.multiple_term(wi, wo),
         ]
     }
@@ -358,75 +365,100 @@ impl CoatedPaint {
     }
 
     /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
-    #[inline]
-    fn selection<T: Real>(&self, mu_o: T) -> [T; 3] {
-        let avg = |c: [T; 3]| (c[0] + c[1] + c[2]) / T::of(3.0);
-        [self.coat.reflectance(mu_o), avg(self.single.eval(mu_o)), avg(self.multiple.eval(mu_o))]
+    #[inline(always)]
+    fn selection<T: Lanes>(&self, mu_o: T) -> [T; 3] {
+        let [a, b, c] = self.single.eval_lanes(mu_o);
+        let [d, e, f] = self.multiple.eval_lanes(mu_o);
+        let third = T::c(3.0);
+        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third]
     }
 
-    /// The single-scatter layer term with a basecoat evaluator (mean lobe or sparkle).
-    #[inline]
-    fn layer_term<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, base_eval: impl Fn(Vec3<T>, Vec3<T>) -> Rgb<T>) -> Rgb<T> {
+    /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
+    /// `pearl_scale` (1 for the mean lobe, the sparkle multipliers otherwise).
+    #[inline(always)]
+    fn layer_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let (ti, to) = (self.coat.transmittance(wi.z), self.coat.transmittance(wo.z));
-        if ti <= T::zero() || to <= T::zero() {
-            return Rgb::zero();
-        }
+        let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-        let scale = ti * to / T::of(self.coat.ior * self.coat.ior);
-        let mut f = base_eval(wi_in, wo_in) * scale;
+        let scale = ti * to / T::c(self.coat.ior * self.coat.ior);
+        let mut f = self.base.eval_scaled(wi_in, wo_in, metal_scale, pearl_scale) * scale;
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
         }
-        f
+        Rgb::select(crosses, f, Rgb::zero())
     }
 
     /// The multiple-scatter lobe `M(μi) M(μo) / (π M̄)`.
-    #[inline]
-    fn multiple_term<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let (a, b) = (self.multiple.eval(wi.z), self.multiple.eval(wo.z));
-        let n = self.multiple_norm.map(T::of);
+    #[inline(always)]
+    fn multiple_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let (a, b) = (self.multiple.eval_lanes(wi.z), self.multiple.eval_lanes(wo.z));
+        let n = self.multiple_norm.map(T::c);
         Rgb::new(a[0] * b[0] * n[0], a[1] * b[1] * n[1], a[2] * b[2] * n[2])
     }
 
-    /// Evaluation with a custom basecoat evaluator (the sparkle layer plugs in here).
-    #[inline]
-    pub(crate) fn eval_with<T: Real>(
-        &self,
-        wi: Vec3<T>,
-        wo: Vec3<T>,
-        base_eval: impl Fn(Vec3<T>, Vec3<T>) -> Rgb<T>,
-    ) -> Rgb<T> {
+    /// Evaluation with the flake populations scaled (the sparkle layer plugs in here).
+    #[inline(always)]
+    pub(crate) fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let top = self.coat.reflection_eval(wi, wo);
-        Rgb::splat(top) + self.layer_term(wi, wo, base_eval) + self.multiple_term(wi, wo)
+        Rgb::splat(top) + self.layer_term(wi, wo, metal_scale, pearl_scale) + self.multiple_term(wi, wo)
     }
 
-    /// Samples a direction (or the smooth coat's mirror delta) for `wo`.
-    pub(crate) fn sample_direction<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<(Vec3<T>, bool)> {
-        let (lobe, u0) = pick_lobe(&self.selection(wo.z), u[0])?;
-        match lobe {
-            0 => Some((self.coat.reflection_sample(wo, u[1], u[2]), self.coat.is_smooth())),
-            1 => {
-                let wo_in = self.coat.refract_in(wo);
-                let wi_in = self.base.sample_direction(wo_in, [u0, u[1], u[2]])?;
-                if wi_in.z <= T::zero() {
-                    return None;
-                }
-                Some((self.coat.refract_out(wi_in)?, false))
-            }
-            _ => Some((cosine_hemisphere(u[1], u[2]), false)),
-        }
+    /// The mixture density for `wo`'s lobe-selection weights `s`.
+    #[inline(always)]
+    fn pdf_with<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, s: [T; 3]) -> T {
+        let total = s[0] + s[1] + s[2];
+        let mut p = s[0] * self.coat.reflection_pdf(wi, wo);
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let layer = s[1] * self.base.pdf(wi_in, wo_in) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
+        p += keep(lanes::gt(s[1], T::c(0.0)), layer);
+        p += s[2] * cosine_hemisphere_pdf(wi.z);
+        keep(lanes::gt(total, T::c(0.0)), p / total)
     }
 
-    /// Probability of the smooth coat's mirror lobe for `wo` (0 for a rough coat).
-    #[inline]
-    fn delta_probability<T: Real>(&self, mu_o: T) -> T {
-        if !self.coat.is_smooth() {
-            return T::zero();
-        }
-        let s = self.selection(mu_o);
+    /// Samples a direction (or the smooth coat's mirror delta) for `wo`, per lane.
+    #[inline(always)]
+    pub(crate) fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u: [T; 3]) -> SampledDirection<T> {
+        let selection = self.selection(wo.z);
+        let pick = pick3(selection, u[0]);
+        let [top, layer, multiple] = pick.lobe;
+        // Each lobe's sampler runs only when some lane chose it (for one lane: only the
+        // chosen one); lanes that did not choose it never read its result.
+        let normal = Vec3::from_f64(0.0, 0.0, 1.0);
+        let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
+        let (w_layer, layer_ok) = if layer.any() {
+            let wo_in = self.coat.refract_in(wo);
+            let (wi_in, base_ok) = self.base.sample_direction_masked(wo_in, [pick.u, u[1], u[2]], layer);
+            let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
+            (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
+        } else {
+            (normal, T::Mask::splat(false))
+        };
+        let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
+        let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
+        let valid = pick.valid & (top | (layer & layer_ok) | multiple);
+        let delta = if self.coat.is_smooth() { top } else { T::Mask::splat(false) };
+        SampledDirection { wi, valid, delta, selection }
+    }
+
+    /// Probability of the smooth coat's mirror lobe for `wo`'s selection weights `s`.
+    #[inline(always)]
+    fn delta_probability<T: Lanes>(&self, s: [T; 3]) -> T {
         s[0] / (s[0] + s[1] + s[2])
     }
+}
+
+/// A direction drawn by [`CoatedPaint::sample_direction`], per lane.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SampledDirection<T: Lanes> {
+    /// The direction.
+    pub wi: Vec3<T>,
+    /// Lanes with a direction (a lobe was picked and the light escapes the coat).
+    pub valid: T::Mask,
+    /// Lanes that chose the smooth coat's mirror lobe.
+    pub delta: T::Mask,
+    /// The lobe-selection weights for `wo`.
+    pub selection: [T; 3],
 }
 
 /// Builds `A1(μ)` and `M(μ)` (see the module docs) by stratified sampling of the basecoat.
@@ -498,36 +530,58 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
     (MuTable::from_values(single), MuTable::from_values(multiple))
 }
 
+impl LaneBxdf for CoatedPaint {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        self.eval_scaled(wi, wo, L::c(1.0), L::c(1.0))
+    }
+
+    #[inline(always)]
+    fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        self.pdf_with(wi, wo, self.selection(wo.z))
+    }
+
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let d = self.sample_direction(wo, u);
+        let f = self.eval_lanes(d.wi, wo);
+        let pdf = self.pdf_with(d.wi, wo, d.selection);
+        let s = LaneSample::from_eval(d.wi, f, pdf, d.valid & lanes::gt(d.wi.z, L::c(0.0)));
+        if !self.coat.is_smooth() {
+            return s;
+        }
+        // The smooth coat's mirror lobe: a delta with the lobe's probability as its "pdf".
+        let p = self.delta_probability(d.selection);
+        let w = d.selection[0] / p;
+        LaneSample {
+            wi: d.wi,
+            weight: Rgb::select(d.delta, Rgb::splat(w), s.weight),
+            pdf: lanes::select(d.delta, p, s.pdf),
+            valid: (d.delta & d.valid & lanes::gt(p, L::c(0.0))) | (!d.delta & s.valid),
+            delta: d.delta,
+        }
+    }
+}
+
 impl Bxdf for CoatedPaint {
     #[inline]
     fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_with(wi, wo, |a, b| self.base.eval(a, b))
+        self.eval_lanes(wi, wo)
     }
 
     #[inline]
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let s = self.selection(wo.z);
-        let total = s[0] + s[1] + s[2];
-        if total <= T::zero() {
-            return T::zero();
-        }
-        let mut p = s[0] * self.coat.reflection_pdf(wi, wo);
-        if s[1] > T::zero() {
-            let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-            p += s[1] * self.base.pdf(wi_in, wo_in) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
-        }
-        p += s[2] * cosine_hemisphere_pdf(wi.z);
-        p / total
+        self.pdf_lanes(wi, wo)
     }
 
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_with(wo, u, |wi| self.eval(wi, wo))
+        self.sample_lanes(wo, u).into_option()
     }
 
     #[inline]
     fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
         match &self.sparkle_layer {
-            Some(s) if at.is_finite() => self.eval_with(wi, wo, |a, b| self.base_eval_at(s, a, b, at)),
+            Some(s) if at.is_finite() => self.eval_sparkle(s, wi, wo, at),
             _ => self.eval(wi, wo),
         }
     }
@@ -582,7 +636,7 @@ mod tests {
         let n = Vec3::new(0.0f64, 0.0, 1.0);
         let f0 = 0.04f64;
         let expect = (1.0 - f0).powi(2) / 2.25 / std::f64::consts::PI;
-        let got = p.layer_term(n, n, |a, b| p.base.eval(a, b));
+        let got = p.layer_term(n, n, 1.0, 1.0);
         assert!((got.r - expect).abs() < 1e-12, "{} vs {expect}", got.r);
     }
 }

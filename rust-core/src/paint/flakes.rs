@@ -7,8 +7,10 @@
 //! microfacet form with the flakes' normal distribution, height-correlated Smith masking for
 //! mutual occlusion at grazing angles, and albedo at most `c`.
 
-use crate::bxdf::BsdfSample;
+use crate::bxdf::{lane_of, BsdfSample};
+use crate::frame::half_vector_masked;
 use crate::fresnel;
+use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
@@ -32,26 +34,26 @@ pub struct FlakeLayer {
 }
 
 impl FlakeLayer {
-    #[inline]
-    fn microfacet<T: Real>(&self) -> Microfacet<T> {
-        let a = T::of(self.alpha);
+    #[inline(always)]
+    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+        let a = T::c(self.alpha);
         Microfacet::new(DistributionKind::Beckmann, a, a)
     }
 
     /// Reflectance of the metallic population at incidence `cos` on a flake.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn metal_reflectance<T: Real>(&self, cos: T) -> Rgb<T> {
+    pub fn metal_reflectance<T: Lanes>(&self, cos: T) -> Rgb<T> {
         fresnel::conductor_rgb(cos, Rgb::from_array(self.metal_eta), Rgb::from_array(self.metal_k))
     }
 
     /// Reflectance of the pearlescent population at incidence `cos` on a flake.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn pearl_reflectance<T: Real>(&self, cos: T) -> Rgb<T> {
+    pub fn pearl_reflectance<T: Lanes>(&self, cos: T) -> Rgb<T> {
         match &self.pearl_reflectance {
             Some(t) => {
-                let [r, g, b] = t.eval(cos);
+                let [r, g, b] = t.eval_lanes(cos);
                 Rgb::new(r, g, b)
             }
             None => Rgb::zero(),
@@ -60,54 +62,72 @@ impl FlakeLayer {
 
     /// Coverage-weighted reflectance of all flakes at incidence `cos`, with per-population
     /// multipliers (1 for the smooth lobe; the sparkle ratios otherwise).
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn reflectance<T: Real>(&self, cos: T, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+    pub fn reflectance<T: Lanes>(&self, cos: T, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let mut r = Rgb::zero();
         if self.metallic_coverage > 0.0 {
-            r += self.metal_reflectance(cos) * (T::of(self.metallic_coverage) * metal_scale);
+            r += self.metal_reflectance(cos) * (T::c(self.metallic_coverage) * metal_scale);
         }
         if self.pearl_coverage > 0.0 {
-            r += self.pearl_reflectance(cos) * (T::of(self.pearl_coverage) * pearl_scale);
+            r += self.pearl_reflectance(cos) * (T::c(self.pearl_coverage) * pearl_scale);
         }
         r
     }
 
     /// The flake lobe `R(wi·h) D(h) G2 / (4 cos θi cos θo)` with per-population multipliers.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn eval_scaled<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return Rgb::zero() };
+    pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+        let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        if g == T::zero() {
-            return Rgb::zero();
-        }
         let d = mf.d(h);
-        self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (d * g / (T::of(4.0) * wi.z * wo.z))
+        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (d * g / (T::c(4.0) * wi.z * wo.z));
+        Rgb::select(defined & lanes::gt(g, T::c(0.0)), f, Rgb::zero())
     }
 
     /// The mean (footprint → ∞) flake lobe.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_scaled(wi, wo, T::one(), T::one())
+    pub fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_scaled(wi, wo, T::c(1.0), T::c(1.0))
     }
 
     /// Density of [`FlakeLayer::sample`]: visible flake normals seen from `wo`, reflected.
-    #[inline]
+    #[inline(always)]
     #[must_use]
-    pub fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let Some(h) = crate::frame::half_vector(wi, wo) else { return T::zero() };
-        self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h)
+    pub fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        let (h, defined) = half_vector_masked(wi, wo);
+        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
     /// Samples a visible flake normal and reflects `wo` about it (may fall below the surface).
     #[inline]
     #[must_use]
     pub fn sample_direction<T: Real>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
-        let h = self.microfacet::<T>().sample_m(wo, u1, u2, true);
-        crate::frame::reflect(wo, h)
+        self.sample_direction_masked(wo, u1, u2, true)
+    }
+
+    /// [`FlakeLayer::sample_direction`] on the lanes set in `active` (the others get the
+    /// normal). Beckmann visible-normal sampling inverts its CDF by a Newton iteration in f64
+    /// (see [`Microfacet::sample_m`]): inherently scalar, so it runs one lane at a time, and
+    /// only on the lanes that chose the flake lobe.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T, active: T::Mask) -> Vec3<T> {
+        const MAX_WIDTH: usize = 16;
+        assert!(T::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
+        let mf = self.microfacet::<T::Elem>();
+        let (zero, one) = (<T::Elem as Real>::of(0.0), <T::Elem as Real>::of(1.0));
+        let mut out = [Vec3::new(zero, zero, one); MAX_WIDTH];
+        for (i, o) in out.iter_mut().enumerate().take(T::WIDTH) {
+            if active.lane(i) {
+                let w = lane_of(wo, i);
+                *o = crate::frame::reflect(w, mf.sample_m(w, u1.lane(i), u2.lane(i), true));
+            }
+        }
+        Vec3::new(T::from_fn(|i| out[i].x), T::from_fn(|i| out[i].y), T::from_fn(|i| out[i].z))
     }
 
     /// A sample of the mean flake lobe alone.

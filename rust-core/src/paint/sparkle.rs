@@ -484,7 +484,7 @@ mod model_tests {
 
     /// Everything but the flake lobes (flake multipliers 0), for separating the flake part.
     fn without_flakes(p: &CoatedPaint, wi: Vec3<f64>, wo: Vec3<f64>) -> Rgb<f64> {
-        p.eval_with(wi, wo, |a, b| p.basecoat().eval_scaled(a, b, 0.0, 0.0))
+        p.eval_scaled(wi, wo, 0.0, 0.0)
     }
 
     /// A square footprint of side `side` uv units at `uv`.
