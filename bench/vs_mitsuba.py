@@ -433,6 +433,10 @@ def time_alternating(fns, reps, warmup=2):
     try:
         for _ in range(reps):
             for k, fn in fns.items():
+                # Both libraries' worker pools spin for a while after a call before they
+                # sleep (Dr.Jit's nanothread, rayon): a pause keeps one library's idle
+                # workers from taking the cores the next measured call runs on.
+                time.sleep(0.03)
                 t0 = time.perf_counter_ns()
                 fn()
                 times[k].append(time.perf_counter_ns() - t0)
