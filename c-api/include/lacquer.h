@@ -671,6 +671,28 @@ lq_status lq_check_model(const char *model,
 LQ_MUST_USE lq_status lq_fit_node_group(const char *material_json, char **out_json);
 
 /**
+ * "Model only what a scene needs", measured: evaluates the material in every configuration
+ * the library offers (the f64 reference, the f32 SIMD batch kernels, and the kernels with the
+ * lobes the material could drop), measures each one's cost and the maximum relative error of
+ * f·cos θi against the f64 reference on `n` random direction pairs (0 = 65536), and picks
+ * the cheapest within `max_error`, like `lacquer bench --material ... --max-error E`.
+ *
+ * `material` is a live handle. On success writes `{"max_error", "picked": {"name",
+ * "material", "path", "ns_per_eval", "error": {"max", "rms"}}, "candidates": [...]}` to
+ * `*out_json` (free with `lq_string_free`). Returns LQ_ERR_NULL for a NULL handle or
+ * `out_json`, LQ_ERR_INVALID_ARGUMENT for a negative or NaN `max_error` or `n` > 2²⁰. Takes
+ * 0.05–2 s (it times the candidates).
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_json` is NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_choose_configuration(const lq_material *m,
+                                  double max_error,
+                                  size_t n,
+                                  char **out_json);
+
+/**
  * Parses a material: `{"model": "<name>", "<param>": value, ...}` or `{"preset": "<name>"}`.
  *
  * On success writes a new handle to `*out` (free it with `lq_material_free`); on error

@@ -20,7 +20,7 @@ use crate::bxdf::LaneSample;
 use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
-use crate::models::Model;
+use crate::models::{KernelVisitor, LaneKernel, Model};
 use crate::real::Real;
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -432,8 +432,8 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
 const UP: [f64; 3] = [0.0, 0.0, 1.0];
 
 #[inline(always)]
-fn eval_pdf_kernel<L: Lanes>(
-    model: &Model,
+fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
+    model: &K,
     range: (usize, usize),
     wi: &Src3<L::Elem>,
     wo: &Src3<L::Elem>,
@@ -455,12 +455,12 @@ fn eval_pdf_kernel<L: Lanes>(
         }
         let keep = on & ok;
         if let Some(f) = f {
-            let v = model.eval_lanes(a, o);
+            let v = model.eval(a, o);
             let v = Rgb::select(keep, v, Rgb::zero());
             unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
         }
         if let Some(pdf) = pdf {
-            let v = lanes::keep(keep, model.pdf_lanes(a, o));
+            let v = lanes::keep(keep, model.pdf(a, o));
             unsafe { store1(pdf, start, width, v) };
         }
         start += width;
@@ -489,8 +489,8 @@ pub const SAMPLE_FAILED: u32 = 2;
 pub const SAMPLE_INVALID_INPUT: u32 = 4;
 
 #[inline(always)]
-fn sample_kernel<L: Lanes>(
-    model: &Model,
+fn sample_kernel<L: Lanes, K: LaneKernel>(
+    model: &K,
     range: (usize, usize),
     wo: &Src3<L::Elem>,
     u: &Src3<L::Elem>,
@@ -512,7 +512,7 @@ fn sample_kernel<L: Lanes>(
         }
         let (lo, hi) = (L::c(0.0), L::splat(below_one));
         let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
-        let s: LaneSample<L> = model.sample_lanes(o, uc);
+        let s: LaneSample<L> = model.sample(o, uc);
         let inputs_ok = on & o_ok & u_ok;
         let good = inputs_ok & s.valid;
         let wi = Vec3::select(good, s.wi, Vec3::zero());
@@ -591,35 +591,54 @@ unsafe impl Sync for Args<'_, '_> {}
 
 impl Args<'_, '_> {
     #[inline(always)]
-    fn run<L: Lanes<Elem = f32>>(self, model: &Model, range: (usize, usize)) -> BatchReport {
+    fn run<L: Lanes<Elem = f32>, K: LaneKernel>(self, kernel: &K, range: (usize, usize)) -> BatchReport {
         match self {
-            Args::EvalPdf { wi, wo, active, f, pdf } => eval_pdf_kernel::<L>(model, range, wi, wo, active, f, pdf),
-            Args::Sample { wo, u, active, out, flags } => sample_kernel::<L>(model, range, wo, u, active, out, flags),
+            Args::EvalPdf { wi, wo, active, f, pdf } => eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf),
+            Args::Sample { wo, u, active, out, flags } => {
+                sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags)
+            }
         }
     }
 
-    /// Runs the kernel for `range` at the selected instruction set.
+    /// Runs the kernel for `range`: the model's own kernel (one loop per model, see
+    /// [`Model::visit_kernel`]) at the selected instruction set.
     fn dispatch(self, model: &Model, range: (usize, usize)) -> BatchReport {
+        model.visit_kernel(Dispatch { args: self, range })
+    }
+}
+
+/// [`Args::dispatch`] once the model's kernel type is known.
+struct Dispatch<'v, 'a> {
+    args: Args<'v, 'a>,
+    range: (usize, usize),
+}
+
+impl KernelVisitor for Dispatch<'_, '_> {
+    type Output = BatchReport;
+
+    #[inline(always)]
+    fn visit<K: LaneKernel>(self, kernel: &K) -> BatchReport {
+        let (args, range) = (self.args, self.range);
         #[cfg(target_arch = "x86_64")]
         {
             #[target_feature(enable = "avx2,fma")]
-            fn avx2(args: Args<'_, '_>, model: &Model, range: (usize, usize)) -> BatchReport {
-                args.run::<crate::lanes::x86::F32x8>(model, range)
+            fn avx2<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run::<crate::lanes::x86::F32x8, K>(kernel, range)
             }
             #[target_feature(enable = "avx512f")]
-            fn avx512(args: Args<'_, '_>, model: &Model, range: (usize, usize)) -> BatchReport {
-                args.run::<crate::lanes::x86::F32x16>(model, range)
+            fn avx512<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run::<crate::lanes::x86::F32x16, K>(kernel, range)
             }
-            if model.has_lane_kernel() {
+            if K::NATIVE {
                 match simd_level() {
                     // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
-                    SimdLevel::Avx512 => return unsafe { avx512(self, model, range) },
-                    SimdLevel::Avx2 => return unsafe { avx2(self, model, range) },
+                    SimdLevel::Avx512 => return unsafe { avx512(args, kernel, range) },
+                    SimdLevel::Avx2 => return unsafe { avx2(args, kernel, range) },
                     SimdLevel::Scalar => {}
                 }
             }
         }
-        self.run::<f32>(model, range)
+        args.run::<f32, K>(kernel, range)
     }
 }
 
@@ -679,5 +698,19 @@ pub fn eval_pdf_f64(
     let n = wi.n;
     check_views(n, &[("wo", wo.n), ("active", active.map_or(n, <[u8]>::len))])?;
     check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
-    Ok(run(n, |s, e| eval_pdf_kernel::<f64>(m.model(), (s, e), wi, wo, active, f, pdf)))
+    struct F64<'v, 'a> {
+        wi: &'v Src3<'a, f64>,
+        wo: &'v Src3<'a, f64>,
+        active: Option<&'a [u8]>,
+        f: Option<&'v Dst3<'a, f64>>,
+        pdf: Option<&'v Dst1<'a, f64>>,
+        range: (usize, usize),
+    }
+    impl KernelVisitor for F64<'_, '_> {
+        type Output = BatchReport;
+        fn visit<K: LaneKernel>(self, k: &K) -> BatchReport {
+            eval_pdf_kernel::<f64, K>(k, self.range, self.wi, self.wo, self.active, self.f, self.pdf)
+        }
+    }
+    Ok(run(n, |s, e| m.model().visit_kernel(F64 { wi, wo, active, f, pdf, range: (s, e) })))
 }

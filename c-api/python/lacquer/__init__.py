@@ -54,6 +54,7 @@ __all__ = [
     "CancelledError",
     "abi_version",
     "set_thread_count",
+    "choose_configuration",
     "simd_level",
     "library_path",
     "LQ_SAMPLE_DELTA",
@@ -439,6 +440,17 @@ def set_thread_count(n: int) -> None:
 def simd_level() -> str:
     """The instruction set the batch kernels use on this CPU: "avx512", "avx2" or "scalar"."""
     return _native.lib.lq_simd_level().decode()
+
+
+def choose_configuration(material: Union[str, bytes, dict, "Material"], max_error: float, n: int = 0) -> dict:
+    """The cheapest configuration of ``material`` whose maximum relative error of f·cos θi
+    against its f64 reference stays within ``max_error`` ("model only what a scene needs",
+    measured): ``{"max_error", "picked": {"name", "material", "path", "ns_per_eval", "error":
+    {"max", "rms"}}, "candidates": [...]}``. ``n`` direction pairs (0: 65536). Takes 0.05–2 s."""
+    m = material if isinstance(material, Material) else Material(material)
+    out = c_void_p()
+    _check(_native.lib.lq_choose_configuration(m._h(), float(max_error), int(n), byref(out)))
+    return _json.loads(_native.take_string(out))
 
 
 def check_model(name: str, level: Union[str, int] = "quick") -> CheckResult:

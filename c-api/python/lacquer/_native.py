@@ -94,6 +94,7 @@ _SIGNATURES = {
     "lq_check_material": (c_int32, [c_void_p, c_int32, _STR_OUT, POINTER(c_bool)]),
     "lq_check_model": (c_int32, [c_char_p, c_int32, _STR_OUT, POINTER(c_bool)]),
     "lq_fit_node_group": (c_int32, [c_char_p, _STR_OUT]),
+    "lq_choose_configuration": (c_int32, [c_void_p, c_double, c_size_t, _STR_OUT]),
     "lq_render": (c_int32, [c_char_p, PROGRESS_FN, c_void_p, POINTER(c_void_p)]),
     "lq_image_width": (c_uint32, [c_void_p]),
     "lq_image_height": (c_uint32, [c_void_p]),

@@ -20,6 +20,8 @@ use crate::real::Real;
 use std::fmt::Debug;
 use std::ops::{Add, AddAssign, BitAnd, BitOr, Div, DivAssign, Mul, MulAssign, Neg, Not, Sub, SubAssign};
 
+// The polynomials serve the SIMD types, which exist on x86-64 only for now.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 mod poly;
 #[cfg(target_arch = "x86_64")]
 pub mod x86;

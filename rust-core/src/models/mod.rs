@@ -179,69 +179,61 @@ impl Model {
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
-        // Models see only the inputs the scalar path lets through: lanes below the horizon
-        // (whose results are discarded) get the normal instead.
-        let (wi, wo) = (
-            Vec3::select(above, wi, Vec3::from_f64(0.0, 0.0, 1.0)),
-            Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0)),
-        );
-        let f = match self {
-            Model::Lambert(m) => m.eval_lanes(wi, wo),
-            Model::RoughConductor(m) => m.eval_lanes(wi, wo),
-            Model::RoughPlastic(m) => m.eval_lanes(wi, wo),
-            Model::CookTorrance(m) => m.eval_lanes(wi, wo),
-            Model::Principled(m) => m.eval_lanes(wi, wo),
-            Model::CoatedPaint(m) => m.eval_lanes(wi, wo),
-            _ => per_lane_rgb(wi, wo, |a, b| self.eval(a, b)),
-        };
-        Rgb::select(above, f, Rgb::zero())
+        match self {
+            Model::Lambert(m) => Native(m).eval(wi, wo),
+            Model::RoughConductor(m) => Native(m).eval(wi, wo),
+            Model::RoughPlastic(m) => Native(m).eval(wi, wo),
+            Model::CookTorrance(m) => Native(m).eval(wi, wo),
+            Model::Principled(m) => Native(m).eval(wi, wo),
+            Model::CoatedPaint(m) => Native(m).eval(wi, wo),
+            _ => ScalarLoop(self).eval(wi, wo),
+        }
     }
 
     /// [`Model::pdf`] per lane.
     #[inline(always)]
     #[must_use]
     pub fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
-        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
-        let (wi, wo) = (
-            Vec3::select(above, wi, Vec3::from_f64(0.0, 0.0, 1.0)),
-            Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0)),
-        );
-        let pdf = match self {
-            Model::Lambert(m) => m.pdf_lanes(wi, wo),
-            Model::RoughConductor(m) => m.pdf_lanes(wi, wo),
-            Model::RoughPlastic(m) => m.pdf_lanes(wi, wo),
-            Model::CookTorrance(m) => m.pdf_lanes(wi, wo),
-            Model::Principled(m) => m.pdf_lanes(wi, wo),
-            Model::CoatedPaint(m) => m.pdf_lanes(wi, wo),
-            _ => L::from_fn(|i| self.pdf(lane_of(wi, i), lane_of(wo, i))),
-        };
-        lanes::keep(above, pdf)
+        match self {
+            Model::Lambert(m) => Native(m).pdf(wi, wo),
+            Model::RoughConductor(m) => Native(m).pdf(wi, wo),
+            Model::RoughPlastic(m) => Native(m).pdf(wi, wo),
+            Model::CookTorrance(m) => Native(m).pdf(wi, wo),
+            Model::Principled(m) => Native(m).pdf(wi, wo),
+            Model::CoatedPaint(m) => Native(m).pdf(wi, wo),
+            _ => ScalarLoop(self).pdf(wi, wo),
+        }
     }
 
     /// [`Model::sample`] per lane; `valid` is false where the scalar call returns `None`.
     #[inline(always)]
     #[must_use]
     pub fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let above = lanes::gt(wo.z, L::c(0.0));
-        let wo = Vec3::select(above, wo, Vec3::from_f64(0.0, 0.0, 1.0));
-        let s = match self {
-            Model::Lambert(m) => m.sample_lanes(wo, u),
-            Model::RoughConductor(m) => m.sample_lanes(wo, u),
-            Model::RoughPlastic(m) => m.sample_lanes(wo, u),
-            Model::CookTorrance(m) => m.sample_lanes(wo, u),
-            Model::Principled(m) => m.sample_lanes(wo, u),
-            Model::CoatedPaint(m) => m.sample_lanes(wo, u),
-            _ => self.sample_per_lane(wo, u),
-        };
-        let valid = s.valid
-            & above
-            & lanes::gt(s.pdf, L::c(0.0))
-            & lanes::is_finite(s.pdf)
-            & s.wi.finite_mask()
-            & (s.delta | lanes::gt(s.wi.z, L::c(0.0)));
-        let finite_weight = lanes::is_finite(s.weight.r) & lanes::is_finite(s.weight.g) & lanes::is_finite(s.weight.b);
-        LaneSample { valid: valid & finite_weight, ..s }
+        match self {
+            Model::Lambert(m) => Native(m).sample(wo, u),
+            Model::RoughConductor(m) => Native(m).sample(wo, u),
+            Model::RoughPlastic(m) => Native(m).sample(wo, u),
+            Model::CookTorrance(m) => Native(m).sample(wo, u),
+            Model::Principled(m) => Native(m).sample(wo, u),
+            Model::CoatedPaint(m) => Native(m).sample(wo, u),
+            _ => ScalarLoop(self).sample(wo, u),
+        }
+    }
+
+    /// Calls `v` with this model's kernel: its own lane implementation (a loop monomorphised
+    /// for that model alone, which sees no other model's fields) or the element loop of the
+    /// scalar path for models without one. The batch kernels dispatch once per call this way.
+    #[inline(always)]
+    pub fn visit_kernel<V: KernelVisitor>(&self, v: V) -> V::Output {
+        match self {
+            Model::Lambert(m) => v.visit(&Native(m)),
+            Model::RoughConductor(m) => v.visit(&Native(m)),
+            Model::RoughPlastic(m) => v.visit(&Native(m)),
+            Model::CookTorrance(m) => v.visit(&Native(m)),
+            Model::Principled(m) => v.visit(&Native(m)),
+            Model::CoatedPaint(m) => v.visit(&Native(m)),
+            _ => v.visit(&ScalarLoop(self)),
+        }
     }
 
     /// The scalar sampler on each lane.
@@ -275,5 +267,90 @@ impl Model {
             valid,
             delta,
         }
+    }
+}
+
+/// What a batch kernel evaluates, with the hemisphere rules applied: lanes below the horizon
+/// give zero (eval, pdf) or an invalid sample, and the model never sees their directions.
+pub trait LaneKernel: Sync {
+    /// True for lane implementations (worth running in SIMD lanes); false for the scalar loop.
+    const NATIVE: bool;
+    /// `f_r` per lane.
+    fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L>;
+    /// Sampling density per lane.
+    fn pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L;
+    /// Samples per lane.
+    fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L>;
+}
+
+/// Receives a model's [`LaneKernel`] ([`Model::visit_kernel`]).
+pub trait KernelVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Runs with the kernel.
+    fn visit<K: LaneKernel>(self, kernel: &K) -> Self::Output;
+}
+
+/// A lane model as a kernel.
+pub struct Native<'a, B>(pub &'a B);
+
+/// A model without a lane implementation: its scalar path, one lane at a time.
+pub struct ScalarLoop<'a>(pub &'a Model);
+
+/// Lanes below the horizon get the normal instead (their results are discarded): models see
+/// only the inputs the scalar path lets through.
+#[inline(always)]
+fn above_or_up<L: Lanes>(above: L::Mask, w: Vec3<L>) -> Vec3<L> {
+    Vec3::select(above, w, Vec3::from_f64(0.0, 0.0, 1.0))
+}
+
+/// The validity rules `Model::sample` applies to every sample.
+#[inline(always)]
+fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> LaneSample<L> {
+    let valid = s.valid
+        & above
+        & lanes::gt(s.pdf, L::c(0.0))
+        & lanes::is_finite(s.pdf)
+        & s.wi.finite_mask()
+        & (s.delta | lanes::gt(s.wi.z, L::c(0.0)));
+    let finite_weight = lanes::is_finite(s.weight.r) & lanes::is_finite(s.weight.g) & lanes::is_finite(s.weight.b);
+    LaneSample { valid: valid & finite_weight, ..s }
+}
+
+impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
+    const NATIVE: bool = true;
+    #[inline(always)]
+    fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        let f = self.0.eval_lanes(above_or_up(above, wi), above_or_up(above, wo));
+        Rgb::select(above, f, Rgb::zero())
+    }
+    #[inline(always)]
+    fn pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        lanes::keep(above, self.0.pdf_lanes(above_or_up(above, wi), above_or_up(above, wo)))
+    }
+    #[inline(always)]
+    fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let above = lanes::gt(wo.z, L::c(0.0));
+        checked_sample(self.0.sample_lanes(above_or_up(above, wo), u), above)
+    }
+}
+
+impl LaneKernel for ScalarLoop<'_> {
+    const NATIVE: bool = false;
+    #[inline(always)]
+    fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        // `Model::eval` applies the hemisphere rule itself.
+        per_lane_rgb(wi, wo, |a, b| self.0.eval(a, b))
+    }
+    #[inline(always)]
+    fn pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        L::from_fn(|i| self.0.pdf(lane_of(wi, i), lane_of(wo, i)))
+    }
+    #[inline(always)]
+    fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let above = lanes::gt(wo.z, L::c(0.0));
+        checked_sample(self.0.sample_per_lane(above_or_up(above, wo), u), above)
     }
 }
