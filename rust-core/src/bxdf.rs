@@ -89,6 +89,38 @@ pub trait LaneBxdf {
     fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L>;
 }
 
+/// Implements [`Bxdf`] for a [`LaneBxdf`] model by calling its lane methods with a one-lane
+/// type: the scalar f32/f64 paths are the lane code itself.
+#[macro_export]
+macro_rules! bxdf_from_lanes {
+    ($ty:ty) => {
+        impl $crate::bxdf::Bxdf for $ty {
+            #[inline]
+            fn eval<T: $crate::real::Real>(
+                &self,
+                wi: $crate::math::Vec3<T>,
+                wo: $crate::math::Vec3<T>,
+            ) -> $crate::math::Rgb<T> {
+                $crate::bxdf::LaneBxdf::eval_lanes(self, wi, wo)
+            }
+
+            #[inline]
+            fn pdf<T: $crate::real::Real>(&self, wi: $crate::math::Vec3<T>, wo: $crate::math::Vec3<T>) -> T {
+                $crate::bxdf::LaneBxdf::pdf_lanes(self, wi, wo)
+            }
+
+            #[inline]
+            fn sample<T: $crate::real::Real>(
+                &self,
+                wo: $crate::math::Vec3<T>,
+                u: [T; 3],
+            ) -> Option<$crate::bxdf::BsdfSample<T>> {
+                $crate::bxdf::LaneBxdf::sample_lanes(self, wo, u).into_option()
+            }
+        }
+    };
+}
+
 /// Runs a scalar colour function of a direction pair on each lane: the bridge from lane code
 /// to parts that exist only in scalar form (tabulated compensation lobes, Newton iterations).
 #[inline(always)]

@@ -41,7 +41,7 @@
 //! E. Heitz, "Understanding the Masking-Shadowing Function", JCGT 2014; C. Kulla, A. Conty,
 //! SIGGRAPH 2017 course.
 
-use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{lane_of, per_lane_rgb, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
@@ -51,7 +51,6 @@ use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
-use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
 const PARAMS: &[ParamSpec] = &[
@@ -228,22 +227,7 @@ impl LaneBxdf for CookTorrance {
     }
 }
 
-impl Bxdf for CookTorrance {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.pdf_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_lanes(wo, u).into_option()
-    }
-}
+crate::bxdf_from_lanes!(CookTorrance);
 
 #[cfg(test)]
 mod tests {

@@ -7,13 +7,12 @@
 //! Sampling: cosine-weighted hemisphere, so the weight is exactly ρ.
 //! Reference: J. H. Lambert, *Photometria*, 1760.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::lanes::{self, Lanes, Mask};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
-use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
 const PARAMS: &[ParamSpec] = &[ParamSpec::color("albedo", [0.5; 3], 0.0, 1.0, "hemispherical reflectance ρ")];
@@ -65,19 +64,4 @@ impl LaneBxdf for Lambert {
     }
 }
 
-impl Bxdf for Lambert {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.pdf_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_lanes(wo, u).into_option()
-    }
-}
+crate::bxdf_from_lanes!(Lambert);

@@ -83,7 +83,7 @@
 //! (energy compensation); Walter et al. 2007 and Heitz 2014 (GGX, Smith masking); Belcour &
 //! Barla 2017 (thin-film iridescence).
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::{fresnel_average, AlbedoTable, TableRequest, WeightKey};
 use crate::error::Error;
 use crate::frame::{half_vector_masked, mirror_z};
@@ -803,26 +803,12 @@ impl LaneBxdf for Principled {
     }
 }
 
-impl Bxdf for Principled {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.pdf_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_lanes(wo, u).into_option()
-    }
-}
+crate::bxdf_from_lanes!(Principled);
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bxdf::Bxdf;
     use crate::Material;
 
     fn principled(json: &str) -> Principled {

@@ -60,7 +60,7 @@
 //! Distribution of Visible Normals", EGSR 2014; Mitsuba 3 `src/bsdfs/roughconductor.cpp` and
 //! `include/mitsuba/render/microfacet.h`; C. Kulla, A. Conty, SIGGRAPH 2017 course.
 
-use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{lane_of, per_lane_rgb, Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
@@ -292,22 +292,7 @@ impl LaneBxdf for RoughConductor {
     }
 }
 
-impl Bxdf for RoughConductor {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.pdf_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_lanes(wo, u).into_option()
-    }
-}
+crate::bxdf_from_lanes!(RoughConductor);
 
 #[cfg(test)]
 mod tests {

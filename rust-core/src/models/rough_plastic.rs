@@ -65,7 +65,7 @@
 //! (`eval_transmittance`, `eval_reflectance`); B. Walter et al., EGSR 2007; W. Jakob,
 //! *Mitsuba documentation*, `plastic` and `roughplastic`.
 
-use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::{visible_normal_integral, NormalDomain, SlopeConic};
 use crate::error::Error;
 use crate::frame::{half_vector_masked, reflect};
@@ -418,22 +418,7 @@ impl LaneBxdf for RoughPlastic {
     }
 }
 
-impl Bxdf for RoughPlastic {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.pdf_lanes(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        self.sample_lanes(wo, u).into_option()
-    }
-}
+crate::bxdf_from_lanes!(RoughPlastic);
 
 #[cfg(test)]
 mod tests {
