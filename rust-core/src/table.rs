@@ -7,6 +7,20 @@ use crate::real::Real;
 #[derive(Clone, Debug, PartialEq)]
 pub struct MuTable {
     values: Vec<[f64; 3]>,
+    /// The node values rounded to f32, one array per channel, padded with the last node to a
+    /// multiple of 16 entries (at least 32) for the SIMD lookups ([`Lanes::lookup_f32_`]).
+    lane_values: [Vec<f32>; 3],
+}
+
+/// Per-channel f32 copies of `values`, padded for [`Lanes::lookup_f32_`].
+fn lane_values(values: &[[f64; 3]]) -> [Vec<f32>; 3] {
+    let padded = values.len().next_multiple_of(16).max(32);
+    [0, 1, 2].map(|c| {
+        let last = values[values.len() - 1][c] as f32;
+        let mut v: Vec<f32> = values.iter().map(|x| x[c] as f32).collect();
+        v.resize(padded, last);
+        v
+    })
 }
 
 impl MuTable {
@@ -14,14 +28,14 @@ impl MuTable {
     #[must_use]
     pub fn build(n: usize, mut f: impl FnMut(f64) -> [f64; 3]) -> Self {
         let n = n.max(2);
-        Self { values: (0..n).map(|k| f(k as f64 / (n - 1) as f64)).collect() }
+        Self::from_values((0..n).map(|k| f(k as f64 / (n - 1) as f64)).collect())
     }
 
     /// A table from node values at `μ_k = k/(n−1)` (`n ≥ 2`).
     #[must_use]
     pub fn from_values(values: Vec<[f64; 3]>) -> Self {
         assert!(values.len() >= 2, "a table needs at least two nodes");
-        Self { values }
+        Self { lane_values: lane_values(&values), values }
     }
 
     /// Node values.
@@ -43,7 +57,8 @@ impl MuTable {
     }
 
     /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
-    /// table values gathered per lane, with the hardware gather in SIMD lanes).
+    /// table values, rounded to f32, looked up per lane with [`Lanes::lookup_f32_`]: register
+    /// permutes for tables of up to 64 nodes with AVX-512, the hardware gather otherwise).
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
@@ -57,12 +72,11 @@ impl MuTable {
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last as f64);
         let i = lanes::min(x.floor_(), L::c((last - 1) as f64));
         let t = x - i;
-        let flat = self.values.as_flattened();
-        let k = i * L::c(3.0);
+        let next = i + L::c(1.0);
+        // A plain loop, not a closure: everything here must inline into the SIMD kernels.
         let mut out = [L::c(0.0); 3];
-        for (c, o) in out.iter_mut().enumerate() {
-            let a = L::gather_f64_(flat, k + L::c(c as f64));
-            let b = L::gather_f64_(flat, k + L::c((c + 3) as f64));
+        for (o, v) in out.iter_mut().zip(&self.lane_values) {
+            let (a, b) = (L::lookup_f32_(v, i), L::lookup_f32_(v, next));
             *o = a + (b - a) * t;
         }
         out

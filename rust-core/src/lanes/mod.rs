@@ -113,6 +113,9 @@ pub trait Lanes:
     fn floor_(self) -> Self;
     /// `self · 2^k` for integral `k` (as a float) in `[-126, 127]`.
     fn ldexp_(self, k: Self) -> Self;
+    /// `(m, e)` with `self = m · 2^e`, `m ∈ [0.5, 1)` and integral `e` (as a float), for
+    /// positive normal numbers (others unspecified).
+    fn frexp_(self) -> (Self, Self);
     /// `|self|` with the sign of `sign`.
     fn copysign_(self, sign: Self) -> Self;
     /// `self < o`.
@@ -134,16 +137,17 @@ pub trait Lanes:
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
     fn sin_cos_(self) -> (Self, Self);
-    /// `table[i]` per lane, rounded to the lane precision, for lanes `idx` holding integral
-    /// values; indices are clamped to the table (NaN reads entry 0). SIMD lanes use the
-    /// hardware gather.
+    /// `table[i]` per lane for lanes `idx` holding integral values; indices are clamped to
+    /// the table (NaN reads entry 0). `table.len()` must be a multiple of 16 and at least 32
+    /// (pad with the last entry). SIMD lanes use register permutes for tables of up to 64
+    /// entries with AVX-512 and the hardware gather otherwise.
     #[inline(always)]
-    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+    fn lookup_f32_(table: &[f32], idx: Self) -> Self {
         let last = (table.len() - 1) as f64;
         Self::from_fn(|i| {
             let j = idx.lane(i).f64();
             let j = if j > 0.0 { j.min(last) } else { 0.0 };
-            Self::Elem::of(table[j as usize])
+            Self::Elem::of(f64::from(table[j as usize]))
         })
     }
     /// The complementary error function `1 − erf(x)`: the f32 polynomial of
@@ -151,6 +155,19 @@ pub trait Lanes:
     #[inline(always)]
     fn erfc_(self) -> Self {
         poly::erfc_f32(self)
+    }
+
+    /// The natural logarithm: the f32 polynomial of [`poly::ln_f32`] for SIMD lanes (positive
+    /// normal arguments); the scalar types keep `std`.
+    #[inline(always)]
+    fn ln_(self) -> Self {
+        poly::ln_f32(self)
+    }
+    /// The inverse error function on `(−1, 1)`: Giles' single-precision approximation
+    /// ([`poly::erfinv_f32`]) for SIMD lanes; the scalar types keep [`crate::special::erfinv`].
+    #[inline(always)]
+    fn erfinv_(self) -> Self {
+        poly::erfinv_f32(self)
     }
 
     /// An `f64` constant or parameter in every lane (rounded to the lane precision).
@@ -223,6 +240,11 @@ impl<T: Real> Lanes for T {
         self * num_traits::Float::powi(T::of(2.0), k.f64() as i32)
     }
     #[inline(always)]
+    fn frexp_(self) -> (Self, Self) {
+        let (m, e) = libm::frexp(self.f64());
+        (T::of(m), T::of(f64::from(e)))
+    }
+    #[inline(always)]
     fn copysign_(self, sign: Self) -> Self {
         num_traits::Float::copysign(self, sign)
     }
@@ -265,6 +287,14 @@ impl<T: Real> Lanes for T {
     #[inline(always)]
     fn erfc_(self) -> Self {
         crate::special::erfc(self)
+    }
+    #[inline(always)]
+    fn ln_(self) -> Self {
+        num_traits::Float::ln(self)
+    }
+    #[inline(always)]
+    fn erfinv_(self) -> Self {
+        T::of(crate::special::erfinv(self.f64()))
     }
 }
 
@@ -333,6 +363,16 @@ pub fn sin_cos<L: Lanes>(x: L) -> (L, L) {
 #[inline(always)]
 pub fn erfc<L: Lanes>(x: L) -> L {
     x.erfc_()
+}
+/// The natural logarithm (positive normal arguments in SIMD lanes).
+#[inline(always)]
+pub fn ln<L: Lanes>(x: L) -> L {
+    x.ln_()
+}
+/// The inverse error function on `(−1, 1)`.
+#[inline(always)]
+pub fn erfinv<L: Lanes>(x: L) -> L {
+    x.erfinv_()
 }
 /// `|x|` with the sign of `sign`.
 #[inline(always)]

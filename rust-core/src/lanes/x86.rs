@@ -306,6 +306,22 @@ impl Lanes for F32x8 {
         }
     }
     #[inline(always)]
+    fn frexp_(self) -> (Self, Self) {
+        // SAFETY: AVX2 per the module contract. Exponent and mantissa from the bits.
+        unsafe {
+            let bits = _mm256_castps_si256(self.0);
+            let e = _mm256_sub_epi32(
+                _mm256_and_si256(_mm256_srli_epi32::<23>(bits), _mm256_set1_epi32(0xff)),
+                _mm256_set1_epi32(126),
+            );
+            let m = _mm256_or_si256(
+                _mm256_and_si256(bits, _mm256_set1_epi32(0x807f_ffff_u32 as i32)),
+                _mm256_set1_epi32(0x3f00_0000),
+            );
+            (Self(_mm256_castsi256_ps(m)), Self(_mm256_cvtepi32_ps(e)))
+        }
+    }
+    #[inline(always)]
     fn copysign_(self, sign: Self) -> Self {
         unsafe {
             let m = _mm256_set1_ps(-0.0);
@@ -356,17 +372,12 @@ impl Lanes for F32x8 {
         poly::sin_cos_f32(self)
     }
     #[inline(always)]
-    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+    fn lookup_f32_(table: &[f32], idx: Self) -> Self {
         let last = (table.len() - 1) as f32;
         // max(NaN, 0) = 0 (the second operand), so every index is in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
         // SAFETY: indices clamped to [0, len − 1] above; AVX2 per the module contract.
-        unsafe {
-            let j = _mm256_cvttps_epi32(j.0);
-            let lo = _mm256_i32gather_pd::<8>(table.as_ptr().cast(), _mm256_castsi256_si128(j));
-            let hi = _mm256_i32gather_pd::<8>(table.as_ptr().cast(), _mm256_extracti128_si256::<1>(j));
-            Self(_mm256_set_m128(_mm256_cvtpd_ps(hi), _mm256_cvtpd_ps(lo)))
-        }
+        unsafe { Self(_mm256_i32gather_ps::<4>(table.as_ptr(), _mm256_cvttps_epi32(j.0))) }
     }
 }
 
@@ -430,6 +441,16 @@ impl Lanes for F32x16 {
         Self(unsafe { _mm512_scalef_ps(self.0, k.0) })
     }
     #[inline(always)]
+    fn frexp_(self) -> (Self, Self) {
+        // SAFETY: AVX-512F per the module contract. getmant normalises to [0.5, 1) and getexp
+        // gives floor(log2) for the [1, 2) convention, hence the + 1.
+        unsafe {
+            let m = _mm512_getmant_ps::<_MM_MANT_NORM_P5_1, _MM_MANT_SIGN_SRC>(self.0);
+            let e = _mm512_add_ps(_mm512_getexp_ps(self.0), _mm512_set1_ps(1.0));
+            (Self(m), Self(e))
+        }
+    }
+    #[inline(always)]
     fn copysign_(self, sign: Self) -> Self {
         unsafe {
             let m = _mm512_set1_epi32(i32::MIN);
@@ -481,18 +502,31 @@ impl Lanes for F32x16 {
         poly::sin_cos_f32(self)
     }
     #[inline(always)]
-    fn gather_f64_(table: &[f64], idx: Self) -> Self {
+    fn lookup_f32_(table: &[f32], idx: Self) -> Self {
+        debug_assert!(
+            table.len() >= 32 && table.len().is_multiple_of(16),
+            "lookup tables are padded to 16k ≥ 32 entries"
+        );
         let last = (table.len() - 1) as f32;
         // max(NaN, 0) = 0 (the second operand), so every index is in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
-        // SAFETY: indices clamped to [0, len − 1] above; AVX-512F per the module contract.
+        let p = table.as_ptr();
+        // SAFETY: indices clamped to [0, len − 1] above, and the table holds a multiple of 16
+        // entries, so every 16-wide load is in bounds; AVX-512F per the module contract.
         unsafe {
             let j = _mm512_cvttps_epi32(j.0);
-            let lo = _mm512_i32gather_pd::<8>(_mm512_castsi512_si256(j), table.as_ptr().cast());
-            let hi = _mm512_i32gather_pd::<8>(_mm512_extracti64x4_epi64::<1>(j), table.as_ptr().cast());
-            let lo = _mm512_castps256_ps512(_mm512_cvtpd_ps(lo));
-            let both = _mm512_insertf64x4::<1>(_mm512_castps_pd(lo), _mm256_castps_pd(_mm512_cvtpd_ps(hi)));
-            Self(_mm512_castpd_ps(both))
+            match table.len() {
+                // Two registers hold the table: one two-source permute (index bits 0–4).
+                32 => Self(_mm512_permutex2var_ps(_mm512_loadu_ps(p), j, _mm512_loadu_ps(p.add(16)))),
+                // Four registers: a permute per half, then bit 5 of the index picks the half.
+                48 | 64 => {
+                    let low = _mm512_permutex2var_ps(_mm512_loadu_ps(p), j, _mm512_loadu_ps(p.add(16)));
+                    let high_b = if table.len() == 64 { p.add(48) } else { p.add(32) };
+                    let high = _mm512_permutex2var_ps(_mm512_loadu_ps(p.add(32)), j, _mm512_loadu_ps(high_b));
+                    Self(_mm512_mask_blend_ps(_mm512_test_epi32_mask(j, _mm512_set1_epi32(32)), low, high))
+                }
+                _ => Self(_mm512_i32gather_ps::<4>(j, p)),
+            }
         }
     }
 }

@@ -7,10 +7,10 @@
 //! microfacet form with the flakes' normal distribution, height-correlated Smith masking for
 //! mutual occlusion at grazing angles, and albedo at most `c`.
 
-use crate::bxdf::{lane_of, BsdfSample};
+use crate::bxdf::BsdfSample;
 use crate::frame::half_vector_masked;
 use crate::fresnel;
-use crate::lanes::{self, keep, Lanes, Mask};
+use crate::lanes::{self, keep, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
@@ -109,25 +109,14 @@ impl FlakeLayer {
         self.sample_direction_masked(wo, u1, u2, true)
     }
 
-    /// [`FlakeLayer::sample_direction`] on the lanes set in `active` (the others get the
-    /// normal). Beckmann visible-normal sampling inverts its CDF by a Newton iteration in f64
-    /// (see [`Microfacet::sample_m`]): inherently scalar, so it runs one lane at a time, and
-    /// only on the lanes that chose the flake lobe.
+    /// [`FlakeLayer::sample_direction`] on the lanes set in `active` (the others get an
+    /// unspecified direction and cost nothing extra: the Beckmann visible-normal inversion
+    /// iterates until the active lanes converge).
     #[inline(always)]
     #[must_use]
     pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T, active: T::Mask) -> Vec3<T> {
-        const MAX_WIDTH: usize = 16;
-        assert!(T::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
-        let mf = self.microfacet::<T::Elem>();
-        let (zero, one) = (<T::Elem as Real>::of(0.0), <T::Elem as Real>::of(1.0));
-        let mut out = [Vec3::new(zero, zero, one); MAX_WIDTH];
-        for (i, o) in out.iter_mut().enumerate().take(T::WIDTH) {
-            if active.lane(i) {
-                let w = lane_of(wo, i);
-                *o = crate::frame::reflect(w, mf.sample_m(w, u1.lane(i), u2.lane(i), true));
-            }
-        }
-        Vec3::new(T::from_fn(|i| out[i].x), T::from_fn(|i| out[i].y), T::from_fn(|i| out[i].z))
+        let a = T::c(self.alpha);
+        crate::frame::reflect(wo, crate::microfacet::sample_visible_beckmann(a, a, wo, u1, u2, active))
     }
 
     /// A sample of the mean flake lobe alone.

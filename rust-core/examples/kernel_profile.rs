@@ -1,0 +1,78 @@
+//! Profiling aid: runs one batch operation of one material in a loop, so `perf record` /
+//! `valgrind --tool=callgrind` see only that kernel.
+//!
+//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|sample> [n] [iterations] [threads, default 1]`
+use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
+use lacquer::Material;
+
+fn src(a: &[Vec<f32>; 3]) -> Src3<'_, f32> {
+    Src3::soa(&a[0], &a[1], &a[2]).expect("equal lengths")
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let usage = "kernel_profile <preset|material JSON> <eval|pdf|sample> [n] [iterations] [threads, default 1]";
+    let spec = args.get(1).expect(usage);
+    let m = if spec.trim_start().starts_with('{') { Material::from_json(spec) } else { Material::preset(spec) }
+        .expect("a preset name or material JSON");
+    let op = args.get(2).map_or("eval", String::as_str);
+    let n: usize = args.get(3).map_or(1 << 16, |s| s.parse().expect("n"));
+    let iterations: usize = args.get(4).map_or(200, |s| s.parse().expect("iterations"));
+    batch::set_thread_count(args.get(5).map_or(1, |s| s.parse().expect("threads")));
+    // Deterministic directions in the upper hemisphere and uniform numbers.
+    let mut state = 0x853c_49e6_748f_ea9b_u64;
+    let mut next = move || {
+        state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        ((state >> 40) as f32) / (1u64 << 24) as f32
+    };
+    let mut dir = || {
+        let (u1, u2) = (next(), next());
+        let r = (1.0 - u1 * u1).sqrt();
+        let phi = std::f32::consts::TAU * u2;
+        [r * phi.cos(), r * phi.sin(), u1.max(1e-4)]
+    };
+    let soa = |v: Vec<[f32; 3]>| -> [Vec<f32>; 3] { [0, 1, 2].map(|k| v.iter().map(|d| d[k]).collect()) };
+    let wi = soa((0..n).map(|_| dir()).collect());
+    let wo = soa((0..n).map(|_| dir()).collect());
+    let uniform = soa((0..n).map(|_| [next(), next(), next()]).collect());
+    let mut out = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+    let mut w = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+    let mut pdf = vec![0f32; n];
+    let (start, cpu_start) = (std::time::Instant::now(), thread_cpu_ns());
+    for _ in 0..iterations {
+        let [ox, oy, oz] = &mut out;
+        let f = Dst3::soa(ox, oy, oz).expect("equal lengths");
+        match op {
+            "eval" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), None)),
+            "pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, None, Some(&Dst1::new(&mut pdf)))),
+            "sample" => {
+                let [wx, wy, wz] = &mut w;
+                let mut s = SampleOut {
+                    wi: f,
+                    weight: Dst3::soa(wx, wy, wz).expect("equal lengths"),
+                    pdf: Dst1::new(&mut pdf),
+                    flags: None,
+                };
+                drop(batch::sample(&m, &src(&wo), &src(&uniform), None, &mut s));
+            }
+            _ => panic!("{usage}"),
+        }
+    }
+    let per = |ns: f64| ns / (n * iterations) as f64;
+    let wall = per(start.elapsed().as_secs_f64() * 1e9);
+    let cpu = match (cpu_start, thread_cpu_ns()) {
+        (Some(a), Some(b)) => format!(", {:.2} ns/element of this thread's CPU time", per((b - a) as f64)),
+        _ => String::new(),
+    };
+    println!(
+        "{op}: {wall:.2} ns/element wall{cpu} ({} lanes, {} threads)",
+        batch::simd_level().name(),
+        batch::thread_count()
+    );
+}
+
+/// CPU time of the calling thread in ns (Linux `/proc/thread-self/schedstat`), which a loaded
+/// machine disturbs far less than wall time (one thread only: with more, use wall time).
+fn thread_cpu_ns() -> Option<u64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat").ok()?.split_whitespace().next()?.parse().ok()
+}
