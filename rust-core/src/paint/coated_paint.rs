@@ -318,6 +318,13 @@ impl CoatedPaint {
         self.sparkle_layer.as_ref()
     }
 
+    /// The half vector of `wi` and `wo` refracted into the coat (the flakes' frame of
+    /// reference; the key of the sparkle direction cells).
+    #[must_use]
+    pub(crate) fn binder_half_vector(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> Option<Vec3<f64>> {
+        crate::frame::half_vector(self.coat.refract_in(wi), self.coat.refract_in(wo))
+    }
+
     /// `f` with the sparkle multipliers of the binder half vector at `at` (the basecoat sees
     /// the directions refracted into the coat).
     #[inline]
