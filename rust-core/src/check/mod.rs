@@ -78,7 +78,7 @@ impl CheckConfig {
             furnace_phi: vec![0.0, 0.25 * std::f64::consts::PI, 0.5 * std::f64::consts::PI],
             furnace_samples: 50_000,
             furnace_tolerance: 1e-3,
-            chi2_directions: vec![(0.95, 0.3), (0.6, 1.1), (0.2, 2.5)],
+            chi2_directions: vec![(0.95, 0.3), (0.6, 1.1), (0.2, 2.5), (0.4, 1.8)],
             chi2_samples: 1_000_000,
             chi2_theta_bins: 32,
             chi2_phi_bins: 64,

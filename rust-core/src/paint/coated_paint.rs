@@ -321,6 +321,7 @@ impl CoatedPaint {
     /// The half vector of `wi` and `wo` refracted into the coat (the flakes' frame of
     /// reference; the key of the sparkle direction cells).
     #[must_use]
+    #[cfg(test)]
     pub(crate) fn binder_half_vector(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> Option<Vec3<f64>> {
         crate::frame::half_vector(self.coat.refract_in(wi), self.coat.refract_in(wo))
     }
