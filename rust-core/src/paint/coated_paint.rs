@@ -19,6 +19,7 @@
 //! | `pearl_film_nm` | scalar | 120 | [0, 1000] | nm | TiO₂/Fe₂O₃ film thickness on the mica |
 //! | `pearl_film_ior` | scalar | 2.6 | [1.3, 3.2] | | film index (TiO₂ rutile ≈ 2.6–2.9) |
 //! | `pearl_substrate_ior` | scalar | 1.58 | [1.3, 2.0] | | mica index |
+//! | `pearl_structure` | choice | platelet | platelet, film | | `platelet`: the film on both faces of an incoherent mica core ([`super::thin_film::ThinFilm::platelet_reflectance`]); `film`: one film on semi-infinite mica (before issue 17) |
 //! | `surface_scale_mm` | scalar | 100 | [0.001, 1e6] | mm | physical length of one uv unit (sparkle) |
 //! | `sparkle` | bool | true | | | resolve individual flakes when a footprint is given |
 //!
@@ -158,6 +159,12 @@ const PARAMS: &[ParamSpec] = &[
     ),
     ParamSpec::scalar("pearl_film_ior", 2.6, 1.3, 3.2, "", "oxide film index (TiO₂ rutile ≈ 2.6–2.9, Fe₂O₃ ≈ 3)"),
     ParamSpec::scalar("pearl_substrate_ior", 1.58, 1.3, 2.0, "", "mica substrate index"),
+    ParamSpec::choice(
+        "pearl_structure",
+        "platelet",
+        &["platelet", "film"],
+        "platelet: oxide film on both faces of an incoherent mica core; film: one film on semi-infinite mica",
+    ),
     ParamSpec::scalar("surface_scale_mm", 100.0, 0.001, 1e6, "mm", "physical length of one uv unit (for sparkle)"),
     ParamSpec::boolean("sparkle", true, "resolve individual flakes when a surface position and footprint are given"),
 ];
@@ -243,7 +250,8 @@ impl CoatedPaint {
             substrate_ior: p.scalar("pearl_substrate_ior"),
             medium_ior: eta,
         };
-        let pearl_table = (pearl_c > 0.0).then(|| film.table(64));
+        let platelet = p.choice("pearl_structure") == "platelet";
+        let pearl_table = (pearl_c > 0.0).then(|| if platelet { film.platelet_table(64) } else { film.table(64) });
         let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
         let sparkle_layer = if p.boolean("sparkle") {
             Sparkle::new(
