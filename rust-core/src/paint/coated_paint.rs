@@ -627,6 +627,36 @@ mod tests {
         }
     }
 
+    /// Issue 17, item 4: pearl flakes are platelets by default (the film on both faces of the
+    /// mica): the flake reflectance at normal incidence on the flake is the platelet's
+    /// spectral RGB (quarter-wave TiO₂: about 0.37 against 0.23 for one film), the pigment
+    /// behind sees `1 − R` of it; `pearl_structure = film` keeps the one-film values. Table
+    /// node at μ = 1: exact to rounding (asserted 1e-12).
+    #[test]
+    fn pearl_flakes_are_platelets_unless_asked_for_one_film() {
+        let json = |structure: &str| {
+            format!(
+                r#"{{"model": "coated_paint", "pearl_density": 10, "pearl_film_nm": 52.9, "pearl_film_ior": 2.6{structure}}}"#
+            )
+        };
+        let film = ThinFilm { thickness_nm: 52.9, film_ior: 2.6, substrate_ior: 1.58, medium_ior: 1.5 };
+        for (structure, want) in
+            [("", film.platelet_spectral_rgb(1.0)), (r#", "pearl_structure": "film""#, film.spectral_rgb(1.0))]
+        {
+            let p = paint(&json(structure));
+            let flakes = p.base.flakes.as_ref().unwrap();
+            let got = flakes.pearl_reflectance(1.0f64);
+            let through = p.base.pearl_transmission.as_ref().unwrap().eval::<f64>(1.0);
+            eprintln!("pearl_structure {structure:?}: R(1) = {got:?}");
+            for c in 0..3 {
+                assert!((got[c] - want[c]).abs() < 1e-12, "{structure}: {got:?} vs {want:?}");
+                assert!((through[c] - (1.0 - want[c])).abs() < 1e-12, "{structure}: {through:?}");
+            }
+        }
+        let (one, both) = (film.spectral_rgb(1.0), film.platelet_spectral_rgb(1.0));
+        assert!(both[1] > one[1] + 0.1, "platelet {both:?} vs one film {one:?}");
+    }
+
     /// No coat (η = 1, no absorption) over a Lambert pigment is exactly Lambert: the layering
     /// adds nothing when there is nothing to layer.
     #[test]

@@ -245,9 +245,9 @@ impl ThinFilm {
     /// `R + T² R / (1 − R²) = 2R / (1 + R)`
     ///
     /// (quarter-wave TiO₂ on mica in a binder of n 1.5 at normal incidence: `R` = 0.231 per
-    /// face, 0.375 for the platelet). The core's thickness does not enter (no absorption in
-    /// mica); the transmitted part `T²/(1 − R²)·…` is not modelled (the pigment under the flake
-    /// sees the flake's shadow, as in the one-film model).
+    /// face, 0.376 for the platelet). The core's thickness does not enter (no absorption in
+    /// mica); the platelet transmits `1 − R` of the light, which the basecoat passes on to the
+    /// pigment behind the flake (`Basecoat::pearl_transmission`).
     #[must_use]
     pub fn platelet_reflectance(&self, cos_theta1: f64, lambda_nm: f64) -> f64 {
         let [s, p] = self.polarised_reflectance(cos_theta1, lambda_nm);
