@@ -9,7 +9,8 @@
 //! terms: "flake density" → `flake_density` (% of area covered), "average flake size" →
 //! `flake_size_um` (diameter), "clearcoat 35–45 µm" → `coat_thickness_um`, "flakes act like
 //! small mirrors" → the flake lobe's conductor Fresnel and orientation spread, "pearlescent
-//! (mica + TiO₂/Fe₂O₃) interference" → `pearl_*` (thin-film Airy reflectance).
+//! (mica + TiO₂/Fe₂O₃) interference" → `pearl_*` (thin-film Airy reflectance of a platelet:
+//! the oxide film on both faces of a mica core).
 
 use serde::Serialize;
 
@@ -103,13 +104,13 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "pearl_white",
         label: "Pearl white",
-        description: "White pearlescent: mica flakes with a ~70 nm TiO₂ film (silver-white interference) over a white base",
+        description: "White pearlescent: mica platelets coated on both faces with a ~70 nm TiO₂ film (silver-white interference; the two faces add incoherently through the mica) over a white base",
         json: r#"{"model": "coated_paint", "base_color": [0.8, 0.8, 0.78], "flake_density": 0, "pearl_density": 12, "pearl_film_nm": 70, "pearl_film_ior": 2.6, "pearl_size_um": 15, "coat_roughness": 0.02}"#,
     },
     Preset {
         name: "pearl_blue",
         label: "Blue interference pearl",
-        description: "Blue pearlescent: mica flakes with a ~140 nm TiO₂ film (blue interference, yellow transmission) over a dark blue base",
+        description: "Blue pearlescent: mica platelets coated on both faces with a ~140 nm TiO₂ film (blue interference, yellow transmission; the two faces add incoherently through the mica) over a dark blue base",
         json: r#"{"model": "coated_paint", "base_color": [0.03, 0.05, 0.18], "flake_density": 1, "pearl_density": 10, "pearl_film_nm": 140, "pearl_film_ior": 2.6, "pearl_size_um": 18, "coat_roughness": 0.02}"#,
     },
     Preset {

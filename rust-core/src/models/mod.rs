@@ -70,6 +70,7 @@ models! {
     CoatedPaint(coated_paint::CoatedPaint),
     CookTorrance(cook_torrance::CookTorrance),
     CookTorrance1981(cook_torrance_1981::CookTorrance1981),
+    Eon(eon::Eon),
     FastPhong(fast_phong::FastPhong),
     Htsg(htsg::Htsg),
     Lafortune(lafortune::Lafortune),

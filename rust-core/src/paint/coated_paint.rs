@@ -19,6 +19,7 @@
 //! | `pearl_film_nm` | scalar | 120 | [0, 1000] | nm | TiO₂/Fe₂O₃ film thickness on the mica |
 //! | `pearl_film_ior` | scalar | 2.6 | [1.3, 3.2] | | film index (TiO₂ rutile ≈ 2.6–2.9) |
 //! | `pearl_substrate_ior` | scalar | 1.58 | [1.3, 2.0] | | mica index |
+//! | `pearl_structure` | choice | platelet | platelet, film | | `platelet`: the film on both faces of an incoherent mica core ([`super::thin_film::ThinFilm::platelet_reflectance`]); `film`: one film on semi-infinite mica (before issue 17) |
 //! | `surface_scale_mm` | scalar | 100 | [0.001, 1e6] | mm | physical length of one uv unit (sparkle) |
 //! | `sparkle` | bool | true | | | resolve individual flakes when a footprint is given |
 //!
@@ -158,6 +159,12 @@ const PARAMS: &[ParamSpec] = &[
     ),
     ParamSpec::scalar("pearl_film_ior", 2.6, 1.3, 3.2, "", "oxide film index (TiO₂ rutile ≈ 2.6–2.9, Fe₂O₃ ≈ 3)"),
     ParamSpec::scalar("pearl_substrate_ior", 1.58, 1.3, 2.0, "", "mica substrate index"),
+    ParamSpec::choice(
+        "pearl_structure",
+        "platelet",
+        &["platelet", "film"],
+        "platelet: oxide film on both faces of an incoherent mica core; film: one film on semi-infinite mica",
+    ),
     ParamSpec::scalar("surface_scale_mm", 100.0, 0.001, 1e6, "mm", "physical length of one uv unit (for sparkle)"),
     ParamSpec::boolean("sparkle", true, "resolve individual flakes when a surface position and footprint are given"),
 ];
@@ -243,7 +250,8 @@ impl CoatedPaint {
             substrate_ior: p.scalar("pearl_substrate_ior"),
             medium_ior: eta,
         };
-        let pearl_table = (pearl_c > 0.0).then(|| film.table(64));
+        let platelet = p.choice("pearl_structure") == "platelet";
+        let pearl_table = (pearl_c > 0.0).then(|| if platelet { film.platelet_table(64) } else { film.table(64) });
         let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
         let sparkle_layer = if p.boolean("sparkle") {
             Sparkle::new(
@@ -316,6 +324,14 @@ impl CoatedPaint {
     #[must_use]
     pub fn sparkle_layer(&self) -> Option<&Sparkle> {
         self.sparkle_layer.as_ref()
+    }
+
+    /// The half vector of `wi` and `wo` refracted into the coat (the flakes' frame of
+    /// reference; the key of the sparkle direction cells).
+    #[must_use]
+    #[cfg(test)]
+    pub(crate) fn binder_half_vector(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> Option<Vec3<f64>> {
+        crate::frame::half_vector(self.coat.refract_in(wi), self.coat.refract_in(wo))
     }
 
     /// `f` with the sparkle multipliers of the binder half vector at `at` (the basecoat sees
@@ -609,6 +625,36 @@ mod tests {
             Model::CoatedPaint(p) => p.clone(),
             _ => unreachable!(),
         }
+    }
+
+    /// Issue 17, item 4: pearl flakes are platelets by default (the film on both faces of the
+    /// mica): the flake reflectance at normal incidence on the flake is the platelet's
+    /// spectral RGB (quarter-wave TiO₂: about 0.37 against 0.23 for one film), the pigment
+    /// behind sees `1 − R` of it; `pearl_structure = film` keeps the one-film values. Table
+    /// node at μ = 1: exact to rounding (asserted 1e-12).
+    #[test]
+    fn pearl_flakes_are_platelets_unless_asked_for_one_film() {
+        let json = |structure: &str| {
+            format!(
+                r#"{{"model": "coated_paint", "pearl_density": 10, "pearl_film_nm": 52.9, "pearl_film_ior": 2.6{structure}}}"#
+            )
+        };
+        let film = ThinFilm { thickness_nm: 52.9, film_ior: 2.6, substrate_ior: 1.58, medium_ior: 1.5 };
+        for (structure, want) in
+            [("", film.platelet_spectral_rgb(1.0)), (r#", "pearl_structure": "film""#, film.spectral_rgb(1.0))]
+        {
+            let p = paint(&json(structure));
+            let flakes = p.base.flakes.as_ref().unwrap();
+            let got = flakes.pearl_reflectance(1.0f64);
+            let through = p.base.pearl_transmission.as_ref().unwrap().eval::<f64>(1.0);
+            eprintln!("pearl_structure {structure:?}: R(1) = {got:?}");
+            for c in 0..3 {
+                assert!((got[c] - want[c]).abs() < 1e-12, "{structure}: {got:?} vs {want:?}");
+                assert!((through[c] - (1.0 - want[c])).abs() < 1e-12, "{structure}: {through:?}");
+            }
+        }
+        let (one, both) = (film.spectral_rgb(1.0), film.platelet_spectral_rgb(1.0));
+        assert!(both[1] > one[1] + 0.1, "platelet {both:?} vs one film {one:?}");
     }
 
     /// No coat (η = 1, no absorption) over a Lambert pigment is exactly Lambert: the layering

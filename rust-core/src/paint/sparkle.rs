@@ -16,13 +16,25 @@
 //! grows.
 //!
 //! ## Flakes as a point process
-//! Flake centres form a Poisson process of density `c / A_flake` on the surface (`c` the area
-//! coverage, `A_flake = π (d/2)²` for diameter `d`), each flake's normal independently drawn
-//! from the projected-area distribution `D(m) cos θm` (all flakes have the same area, so
-//! weighting by projected area is weighting by flake). A footprint of physical area `A`
-//! (uv area × `surface_scale_mm²`, in µm²) then holds `Poisson(N)` flakes with `N = c A /
-//! A_flake`, and the counts in disjoint direction cells are *independent* `Poisson(N p)`
-//! (Poisson thinning). This is the discrete microfacet model of Jakob et al. 2014 with the
+//! The mean lobe fixes the *projected* flake area with normals in `dω_m` per unit surface area:
+//! `c D(m) cos θm dω_m` (`c` the projected area coverage, `D` normalised so that
+//! `∫ D cos θm dω = 1`). All flakes have the same area `A_flake = π (d/2)²` (diameter `d`), so
+//! a flake with normal `m` covers `A_flake cos θm` of the surface, and the *number* of flakes
+//! per unit area with normals in `dω_m` is `(c / A_flake) D(m) dω_m`: per flake, normals are
+//! distributed as `D(m)`, not `D(m) cos θm` (a tilted flake covers less of the surface, so more
+//! of them are needed for the same projected area). Flake centres form a Poisson process of
+//! density `(c / A_flake) ∫ D dω` on the surface, each flake's normal independently drawn from
+//! `D / ∫ D dω`. With `N = c A / A_flake` for a footprint of physical area `A` (uv area ×
+//! `surface_scale_mm²`, in µm²; the number of flakes if all lay flat), the counts in disjoint
+//! direction cells `C` are *independent* `Poisson(N ∫_C D dω)` (Poisson thinning), and for a
+//! cell of probability `p` under `D cos θm`, `∫_C D dω = p ⟨1/cos θm⟩_C`, the mean of
+//! `1/cos θm` over the cell: `1.02` at 12° spread, up to `1.15` at 30° and `1.9` at 60° in the
+//! lobe's tail. The multiplier is `n / (N p ⟨1/cos θm⟩_C)`: its mean is still 1 (each flake
+//! carries `cos θm / N` of the lobe's energy instead of `1/N`) and its variance is
+//! `1 / (N p ⟨1/cos θm⟩_C)`. (Before issue 17 the normals were drawn per flake from
+//! `D cos θm`, which undercounted tilted flakes by `⟨1/cos θm⟩_C` and overstated the variance
+//! by the same factor.) The cell mean of `1/cos θm` is exact up to a table (see
+//! [`Sparkle::inverse_cos_mean`]). This is the discrete microfacet model of Jakob et al. 2014 with the
 //! particles placed by a Poisson process. Jakob et al. fix the particle count of the whole
 //! surface and split it hierarchically with binomial draws; Deliot & Belcour 2023 draw
 //! `Binomial(N, p)` per texel. We use Poisson because (a) at paint coverages (thesis: 0–8 %)
@@ -38,7 +50,8 @@
 //! the squared radius on the unit disk and `h`'s azimuth the angle; the inverse concentric
 //! map ([`crate::sampling::concentric_disk_inverse`], equal-area) takes the disk to the
 //! square. A `K × K` grid on the square is then a partition of the half-vector hemisphere into
-//! cells of probability exactly `p = 1/K²` each. We use the concentric map rather than the
+//! cells of probability exactly `p = 1/K²` each (under `D cos θm`, the projected-area measure;
+//! a cell's expected flake count carries the factor `⟨1/cos θm⟩_C` above). We use the concentric map rather than the
 //! polar `(u1, u2) → (θ, φ)` map of the sampler itself because the polar grid's cells around
 //! the lobe's peak are `K` thin wedges meeting at the normal, whereas the concentric cells
 //! are nearly square there (slope width `√π α / K`).
@@ -59,8 +72,7 @@
 //! So larger flakes give narrower, more directional glints and more cells, and `K` scales with
 //! the lobe width `α`. Coat η = 1.5, orientation 12° (α = 0.213): `d` = 15, 20, 25 µm give
 //! `K` = 13, 17, 21 (`p` = 1/169, 1/289, 1/441). Equal-probability cells are wider in
-//! angle in the lobe's tails (solid angle `1/(K² D cos θ)`) than the diffraction width; each
-//! flake still carries exactly `1/N` of the lobe's energy. Real flakes are not perfectly flat,
+//! angle in the lobe's tails (solid angle `1/(K² D cos θ)`) than the diffraction width. Real flakes are not perfectly flat,
 //! so `δ` is a lower bound on the glint width (an upper bound on `K`). `K = 1` (nearly
 //! parallel flakes, orientation ≲ 0.6°) leaves only the spatial fluctuation of the count.
 //!
@@ -71,13 +83,16 @@
 //! smaller than a flake sees at most that flake, which then covers all of it (a lit level-0
 //! cell reflects like a whole mirror flake, `c m = 1/p`). Between the two nearest levels
 //! `l0 = ⌊ℓ⌋`, `l1 = l0 + 1` (`t = ℓ − l0`) we *distribute the count* over both grids
-//! (Deliot & Belcour 2023): `n = n0 + n1` with `n0 ~ Poisson(w0 N_l0 p)` drawn in the `l0`
-//! cell containing `x` and `n1 ~ Poisson(w1 N_l1 p)` in the `l1` cell, and weights
+//! (Deliot & Belcour 2023): `n = n0 + n1` with `n0 ~ Poisson(w0 N_l0 p g0)` drawn in the `l0`
+//! cell containing `x` and `n1 ~ Poisson(w1 N_l1 p g1)` in the `l1` cell (`g0`, `g1` the
+//! `⟨1/cos θm⟩` of the direction cell of `h` in each grid, whose random offsets differ), and
+//! weights
 //!
 //! `w1 = (4^t − 1)/3`, `w0 = 1 − w1`,
 //!
-//! chosen so that `w0 N_l0 + w1 N_l1 = N_l0 4^t = N`. Then `n ~ Poisson(N p)` *exactly*: at
-//! every position the multiplier has the law of a footprint of area `A`, not only its mean. For
+//! chosen so that `w0 N_l0 + w1 N_l1 = N_l0 4^t = N`. Then `n` is Poisson with mean
+//! `λ = N p (w0' g0 + w1' g1)` (`w_i' = w_i N_li / N`) and the multiplier is `n / λ`: at every
+//! position it has the law of a footprint of area `A`, not only its mean. For
 //! comparison, with independent levels and the true variance `1/(N p)`: linearly blending the
 //! two levels' ratios with weights `1 − t, t` (the LOD blend of Zirr & Kaplanyan 2016 and
 //! Chermain et al. 2020) keeps the mean but gives `((1 − t)² + t²/4) 4^t` times the variance,
@@ -182,6 +197,96 @@ pub struct Sparkle {
     pub metal: Option<FlakePopulation>,
     /// Pearlescent flakes (None without).
     pub pearl: Option<FlakePopulation>,
+    /// Primitives of `1/cos θm` over the direction square (per-cell flake counts).
+    inverse_cos: InverseCosTable,
+}
+
+/// Intervals of the tables of [`InverseCosTable`].
+const INVERSE_COS_NODES: usize = 1024;
+/// Above this many direction cells per axis a cell's `⟨1/cos θm⟩` is its midpoint value.
+const INVERSE_COS_TABLE_MAX_CELLS: u32 = 64;
+
+/// `1/cos θm` of the Beckmann normal at Chebyshev radius `t = max(|a|, |b|)` of the direction
+/// square `(a, b) ∈ [−1, 1]²` (the concentric map keeps it as the disk radius, whose square is
+/// the radial CDF `1 − e^{−tan²θ/α²}`): `√(1 − α² ln(1 − t²))`.
+#[inline]
+fn inverse_cos_at_radius(alpha: f64, t: f64) -> f64 {
+    // Below 1 − ε: the value at the rim is infinite (integrably so).
+    let t = t.abs().min(1.0 - f64::EPSILON);
+    (1.0 - alpha * alpha * (-t * t).ln_1p()).sqrt()
+}
+
+/// Tables of `I1(s) = ∫₀ˢ g(t) dt` and `I2(s) = ∫₀ˢ 2t g(t) dt` for `g` =
+/// [`inverse_cos_at_radius`], from which the integral of `g(max(|a|, |b|))` over any rectangle
+/// of the direction square follows in closed form (see [`InverseCosTable::corner`]).
+#[derive(Clone, Debug)]
+struct InverseCosTable {
+    i1: Vec<f64>,
+    i2: Vec<f64>,
+}
+
+impl InverseCosTable {
+    /// Gauss-Legendre (8 nodes) on each of the table's intervals; the last one holds the
+    /// integrable `√(−ln(1 − t))` rim singularity.
+    fn new(alpha: f64) -> Self {
+        let (mut i1, mut i2) = (vec![0.0; INVERSE_COS_NODES + 1], vec![0.0; INVERSE_COS_NODES + 1]);
+        let h = 1.0 / INVERSE_COS_NODES as f64;
+        for k in 0..INVERSE_COS_NODES {
+            let (x, w) = crate::quadrature::gauss_legendre_on(8, k as f64 * h, (k + 1) as f64 * h);
+            let (mut a, mut b) = (0.0, 0.0);
+            for (x, w) in x.iter().zip(&w) {
+                let g = inverse_cos_at_radius(alpha, *x);
+                a += w * g;
+                b += w * 2.0 * x * g;
+            }
+            i1[k + 1] = i1[k] + a;
+            i2[k + 1] = i2[k] + b;
+        }
+        Self { i1, i2 }
+    }
+
+    /// `(I1(s), I2(s))` for `s ∈ [0, 1]`, linearly interpolated.
+    #[inline]
+    fn primitives(&self, s: f64) -> (f64, f64) {
+        let x = s.clamp(0.0, 1.0) * INVERSE_COS_NODES as f64;
+        let i = (x as usize).min(INVERSE_COS_NODES - 1);
+        let f = x - i as f64;
+        (self.i1[i] + f * (self.i1[i + 1] - self.i1[i]), self.i2[i] + f * (self.i2[i + 1] - self.i2[i]))
+    }
+
+    /// `∫₀ˣ ∫₀ʸ g(max(|a|, |b|)) db da` (signed for negative `x`, `y`). For `0 ≤ x ≤ y` the
+    /// rectangle is the square `[0, x]²`, whose shell at Chebyshev radius `t` has length `2t`,
+    /// plus `[0, x] × [x, y]`, where the maximum is `b`: `I2(x) + x (I1(y) − I1(x))`.
+    #[inline]
+    fn corner(&self, x: f64, y: f64) -> f64 {
+        let (lo, hi) = if x.abs() <= y.abs() { (x.abs(), y.abs()) } else { (y.abs(), x.abs()) };
+        let ((i1_lo, i2_lo), (i1_hi, _)) = (self.primitives(lo), self.primitives(hi));
+        let v = i2_lo + lo * (i1_hi - i1_lo);
+        if (x < 0.0) != (y < 0.0) {
+            -v
+        } else {
+            v
+        }
+    }
+
+    /// `∫∫ g` over `[a0, a1] × [b0, b1]` ⊂ `[−1, 1]²`.
+    #[inline]
+    fn rectangle(&self, a: [f64; 2], b: [f64; 2]) -> f64 {
+        self.corner(a[1], b[1]) - self.corner(a[0], b[1]) - self.corner(a[1], b[0]) + self.corner(a[0], b[0])
+    }
+}
+
+/// The pieces (at most two) of the direction cell `[j/K, (j+1)/K]` shifted back by `offset` on
+/// the torus `[0, 1)`, in the coordinate `a = 2u − 1 ∈ [−1, 1]`.
+#[inline]
+fn cell_pieces(j: u64, k: f64, offset: f64) -> ([[f64; 2]; 2], usize) {
+    let lo = (j as f64 / k - offset).rem_euclid(1.0);
+    let hi = lo + 1.0 / k;
+    if hi <= 1.0 {
+        ([[2.0 * lo - 1.0, 2.0 * hi - 1.0], [0.0; 2]], 1)
+    } else {
+        ([[2.0 * lo - 1.0, 1.0], [-1.0, 2.0 * (hi - 1.0) - 1.0]], 2)
+    }
 }
 
 /// Seeds of the two populations' hash streams.
@@ -212,7 +317,43 @@ impl Sparkle {
         };
         let metal = population(metal, METAL_SEED);
         let pearl = population(pearl, PEARL_SEED);
-        (metal.is_some() || pearl.is_some()).then_some(Self { alpha, um_per_uv: surface_scale_mm * 1e3, metal, pearl })
+        (metal.is_some() || pearl.is_some())
+            .then(|| Self::with_populations(alpha, surface_scale_mm * 1e3, metal, pearl))
+    }
+
+    /// The sparkle layer of the given populations (flake normals of Beckmann width `alpha`,
+    /// `um_per_uv` micrometres per uv unit).
+    #[must_use]
+    pub fn with_populations(
+        alpha: f64,
+        um_per_uv: f64,
+        metal: Option<FlakePopulation>,
+        pearl: Option<FlakePopulation>,
+    ) -> Self {
+        Self { alpha, um_per_uv, metal, pearl, inverse_cos: InverseCosTable::new(alpha) }
+    }
+
+    /// `⟨1/cos θm⟩` over one direction cell (under `D cos θm`): the cell `(jx, jy)` of a `K × K`
+    /// grid shifted by `offset` on the torus of the direction square. Exact up to the linear
+    /// interpolation of 1024-interval tables for `K ≤ 64`; the value at the cell's centre for
+    /// finer grids, whose cells are narrower than 1/64 of the square.
+    #[must_use]
+    pub fn inverse_cos_mean(&self, cells: u32, cell: [u64; 2], offset: [f64; 2]) -> f64 {
+        let k = cells.max(1) as f64;
+        if cells > INVERSE_COS_TABLE_MAX_CELLS {
+            let centre = |j: u64, o: f64| 2.0 * ((j as f64 + 0.5) / k - o).rem_euclid(1.0) - 1.0;
+            let t = centre(cell[0], offset[0]).abs().max(centre(cell[1], offset[1]).abs());
+            return inverse_cos_at_radius(self.alpha, t);
+        }
+        let (xs, nx) = cell_pieces(cell[0], k, offset[0]);
+        let (ys, ny) = cell_pieces(cell[1], k, offset[1]);
+        let mut sum = 0.0;
+        for x in &xs[..nx] {
+            for y in &ys[..ny] {
+                sum += self.inverse_cos.rectangle(*x, *y);
+            }
+        }
+        sum / (2.0 / k).powi(2)
     }
 
     /// Physical footprint area in µm².
@@ -270,18 +411,25 @@ impl Sparkle {
         }
         let w1 = (four_t - 1.0) / 3.0;
         let l0 = l0 as i64;
-        let mut count = self.cell_count(pop, l0, square, at.uv, (1.0 - w1) * n0 * p);
+        let (mut count, mut lambda) = self.cell_count(pop, l0, square, at.uv, (1.0 - w1) * n0 * p);
         if w1 > 0.0 {
-            count += self.cell_count(pop, l0 + 1, square, at.uv, w1 * 4.0 * n0 * p);
+            let (c1, l1) = self.cell_count(pop, l0 + 1, square, at.uv, w1 * 4.0 * n0 * p);
+            count += c1;
+            lambda += l1;
         }
-        count / mean
+        if lambda > 0.0 {
+            count / lambda
+        } else {
+            1.0
+        }
     }
 
     /// The number of flakes of `pop` whose normals fall in the direction cell of `square`, in
-    /// the level-`level` spatial cell containing `uv`, for an expected count `lambda`.
-    fn cell_count(&self, pop: &FlakePopulation, level: i64, square: [f64; 2], uv: [f64; 2], lambda: f64) -> f64 {
-        if !(lambda > 0.0) {
-            return 0.0;
+    /// the level-`level` spatial cell containing `uv`, where `flat` flakes would be expected if
+    /// all lay flat; and its expectation `flat · ⟨1/cos θm⟩` over the cell (see the module docs).
+    fn cell_count(&self, pop: &FlakePopulation, level: i64, square: [f64; 2], uv: [f64; 2], flat: f64) -> (f64, f64) {
+        if !(flat > 0.0) {
+            return (0.0, 0.0);
         }
         let side = pop.flake_area_um2.sqrt() * 2f64.powi(level as i32);
         let ix = (uv[0] * self.um_per_uv / side).floor() as i64;
@@ -289,11 +437,13 @@ impl Sparkle {
         let cell = hash(&[pop.seed, level as u64, ix as u64, iy as u64]);
         // Per-cell random shift of the direction grid on the torus of the square.
         let k = pop.cells as f64;
-        let jx = ((square[0] + unit(mix64(cell ^ 0x51))).fract() * k) as u64;
-        let jy = ((square[1] + unit(mix64(cell ^ 0xa3))).fract() * k) as u64;
+        let offset = [unit(mix64(cell ^ 0x51)), unit(mix64(cell ^ 0xa3))];
         let max = pop.cells as u64 - 1;
-        let u = unit(hash(&[cell, jx.min(max), jy.min(max)]));
-        poisson_inverse(lambda, u)
+        let jx = (((square[0] + offset[0]).fract() * k) as u64).min(max);
+        let jy = (((square[1] + offset[1]).fract() * k) as u64).min(max);
+        let u = unit(hash(&[cell, jx, jy]));
+        let lambda = flat * self.inverse_cos_mean(pop.cells, [jx, jy], offset);
+        (poisson_inverse(lambda, u), lambda)
     }
 }
 
@@ -416,6 +566,139 @@ mod tests {
         }
     }
 
+    /// `⟨1/cos θm⟩` of direction cells (issue 17, item 2) against brute force written here: the
+    /// mean of `1/cos θm` over a 400 × 400 midpoint grid of the cell, each point taken through
+    /// the forward concentric map and the Beckmann radial CDF (`tan²θ = −α² ln(1 − r²)`), for
+    /// random cells and grid offsets (wrapping cells included). And the probability-weighted sum
+    /// over all cells of one grid is `∫ D dω = E_{D cos}[1/cos θm] = 1 + (α√π/2) e^{1/α²}
+    /// erfc(1/α)` (closed form: `tan²θ/α²` is Exp(1) under `D cos θm`).
+    #[test]
+    fn inverse_cos_cell_means_match_brute_force() {
+        let mut rng = Pcg32::new(41, 42);
+        let mut worst_cell = 0.0f64;
+        for &(alpha, k) in &[(0.2126f64, 17u32), (1.0, 9), (1.732, 5), (1.0, 1), (0.2126, 64)] {
+            let s = Sparkle::with_populations(alpha, 1e5, None, None);
+            let brute = |cell: [u64; 2], offset: [f64; 2]| {
+                let m = 400;
+                let mut sum = 0.0;
+                for i in 0..m {
+                    for j in 0..m {
+                        let u = ((cell[0] as f64 + (i as f64 + 0.5) / m as f64) / k as f64 - offset[0]).rem_euclid(1.0);
+                        let v = ((cell[1] as f64 + (j as f64 + 0.5) / m as f64) / k as f64 - offset[1]).rem_euclid(1.0);
+                        let (x, y) = crate::sampling::concentric_disk(u, v);
+                        let tan2 = -alpha * alpha * (1.0 - (x * x + y * y)).ln();
+                        sum += (1.0 + tan2).sqrt();
+                    }
+                }
+                sum / (m * m) as f64
+            };
+            for _ in 0..6 {
+                let cell = [rng.range(0.0, k as f64) as u64, rng.range(0.0, k as f64) as u64];
+                let offset = [rng.uniform(), rng.uniform()];
+                let (got, want) = (s.inverse_cos_mean(k, cell, offset), brute(cell, offset));
+                worst_cell = worst_cell.max((got / want - 1.0).abs());
+                // Measured: at most 4.4e-4 (the brute-force grid's own error at the rim singularity).
+                assert!((got / want - 1.0).abs() < 2e-3, "α {alpha} K {k} cell {cell:?} {offset:?}: {got} vs {want}");
+            }
+            let offset = [rng.uniform(), rng.uniform()];
+            let mut total = 0.0;
+            for jx in 0..k as u64 {
+                for jy in 0..k as u64 {
+                    total += s.inverse_cos_mean(k, [jx, jy], offset) / (k * k) as f64;
+                }
+            }
+            let exact = 1.0
+                + 0.5
+                    * alpha
+                    * std::f64::consts::PI.sqrt()
+                    * (1.0 / (alpha * alpha)).exp()
+                    * crate::special::erfc(1.0 / alpha);
+            eprintln!("α {alpha} K {k}: Σ p ⟨1/cos⟩ = {total:.7}, closed form {exact:.7}");
+            // Measured: at most 2.2e-6 (table resolution at the rim).
+            assert!((total / exact - 1.0).abs() < 1e-5, "α {alpha} K {k}: {total} vs {exact}");
+        }
+        eprintln!("worst cell mean against brute force: {worst_cell:.2e}");
+    }
+
+    /// Issue 17, item 2, against an explicit simulation of flakes of equal area. A footprint
+    /// of area `4^L A_flake` (level `L` = 5, `N = c 4^L` = 51.2 flat-flake equivalents, α = 1,
+    /// `K` = 9) holds `Poisson(Λ)` flakes with `Λ = c 4^L / E[cos θm]`, each normal drawn
+    /// from `D(m)` *per flake* (rejection from Gaussian slopes, weight `1/cos θm`), so that the
+    /// flakes' projected area is `c` of the footprint on average; `E[cos θm]` comes from the
+    /// same sampler. Each footprint gets a uniform direction-grid offset, as each spatial cell
+    /// does in the model. Compared: the fraction of footprints with at least one flake in the
+    /// direction cell of `h`, simulated (explicit flakes) and from the model's multiplier
+    /// (`m > 0`) at 60 000 random positions, at the peak, at tan θh = 1 and at tan θh = 2.
+    /// The old per-flake law `D cos θm` gives `1 − e^{−N p}` = 0.468 everywhere; the flakes
+    /// give 0.471 at the peak, 0.598 at tan θh = 1 and 0.681 at tan θh = 2 (old law 45 and 75
+    /// standard errors away).
+    #[test]
+    fn counts_per_direction_cell_match_explicit_equal_area_flakes() {
+        let (alpha, k, coverage, level) = (1.0f64, 9u32, 0.05, 5);
+        let pop = FlakePopulation::new(coverage, 20.0, k, METAL_SEED);
+        let flat = coverage * 4f64.powi(level);
+        let p = pop.cell_probability;
+        let side = (pop.flake_area_um2 * 4f64.powi(level) * (1.0 + 1e-9)).sqrt() / 1e5;
+        let s = Sparkle::with_populations(alpha, 1e5, Some(pop), None);
+        let mut rng = Pcg32::new(77, 78);
+        // One flake normal from D(m) (per flake): Gaussian slopes are D cos θm; accept with
+        // probability (1/cos θm) / W, W = √(1 + 30 α²) (slopes beyond: e^{−30}, dropped).
+        let w_max = (1.0 + 30.0 * alpha * alpha).sqrt();
+        let flake_normal = |rng: &mut Pcg32| loop {
+            let (r, phi) = ((-rng.uniform().ln()).sqrt() * alpha, 2.0 * std::f64::consts::PI * rng.uniform());
+            let (sx, sy) = (r * phi.cos(), r * phi.sin());
+            let w = (1.0 + sx * sx + sy * sy).sqrt();
+            if w <= w_max && rng.uniform() * w_max < w {
+                return Vec3::new(-sx, -sy, 1.0).normalize();
+            }
+        };
+        let mean_cos = (0..400_000).map(|_| flake_normal(&mut rng).z).sum::<f64>() / 400_000.0;
+        let flakes_per_footprint = flat / mean_cos;
+        let trials = 60_000;
+        for (name, h) in [
+            ("peak", Vec3::new(0.0, 0.0, 1.0)),
+            ("tan θ = 1", Vec3::new(0.3f64.cos(), 0.3f64.sin(), 1.0).normalize()),
+            ("tan θ = 2", Vec3::new(2.0 * 1.1f64.cos(), 2.0 * 1.1f64.sin(), 1.0).normalize()),
+        ] {
+            let sq = s.direction_square(h);
+            let mut sim_lit = 0usize;
+            for _ in 0..trials {
+                let o = [rng.uniform(), rng.uniform()];
+                let cell = |q: [f64; 2]| {
+                    [((q[0] + o[0]).fract() * k as f64) as u64, ((q[1] + o[1]).fract() * k as f64) as u64]
+                };
+                let target = cell(sq);
+                // Poisson(Λ) flakes: exponential gaps of a unit-rate process up to Λ.
+                let mut t = -rng.uniform().ln();
+                let mut hit = false;
+                while t < flakes_per_footprint {
+                    if cell(s.direction_square(flake_normal(&mut rng))) == target {
+                        hit = true;
+                    }
+                    t -= rng.uniform().ln();
+                }
+                sim_lit += usize::from(hit);
+            }
+            let pop = s.metal.as_ref().unwrap();
+            let mut model_lit = 0usize;
+            let mut model_sum = 0.0;
+            for _ in 0..trials {
+                let m = s.multiplier(pop, sq, &at([rng.range(0.0, 1e3), rng.range(0.0, 1e3)], side));
+                model_lit += usize::from(m > 0.0);
+                model_sum += m;
+            }
+            let (fs, fm) = (sim_lit as f64 / trials as f64, model_lit as f64 / trials as f64);
+            let se = (fs * (1.0 - fs) / trials as f64 + fm * (1.0 - fm) / trials as f64).sqrt();
+            let old = 1.0 - (-flat * p).exp();
+            eprintln!(
+                "{name}: lit fraction explicit flakes {fs:.4}, model {fm:.4} (±{se:.4}), old law {old:.4};                  model mean multiplier {:.4}",
+                model_sum / trials as f64
+            );
+            // Measured (seeded): 0.8, 1.0 and 0.4 σ of the two binomial errors.
+            assert!((fs - fm).abs() <= 4.0 * se, "{name}: explicit {fs} vs model {fm} (±{se})");
+        }
+    }
+
     /// The multiplier is continuous across integer levels of detail: just below and just above
     /// `ℓ = 3` the same flakes are counted.
     #[test]
@@ -523,15 +806,36 @@ mod model_tests {
     /// (1) Convergence. For footprints holding N = 1 … 10⁵ flakes on average, over 400 000
     /// random positions: the mean of `eval_at` is `eval` within 4 standard errors of the exact
     /// law (σ_mean = 1/√(N p M)), and the per-position variance of the flake multiplier is
-    /// `1/(N p)`, within 4.5 standard errors of the variance estimator
+    /// `E[1/g]/(N p)` (`g = ⟨1/cos θm⟩` of the direction cell of the binder half vector, whose
+    /// grid offset differs from position to position; 1.000 at the peak, 0.988 in the tail),
+    /// within 4.5 standard errors of the variance estimator
     /// (`√((1/(Np) + 2)/M)` relative, Poisson fourth moment) — i.e. it falls like 1/N with a
     /// fitted log-log slope in [−1.03, −0.97]. At the lobe peak (h = normal) and in the tail.
+    /// Before issue 17 (per-flake normals from `D cos θm`) the tail's `var·N p` was 1, 5.3
+    /// standard errors from 0.988 at N = 10⁴ (the explicit-flake test in `tests` is the
+    /// stronger one).
     #[test]
     fn sparkle_converges_to_the_mean_lobe() {
         let (_, p) = material(r#"{"model": "coated_paint", "flake_density": 3, "flake_size_um": 20}"#);
-        let pp = p.sparkle_layer().unwrap().metal.as_ref().unwrap().cell_probability;
+        let s = p.sparkle_layer().unwrap();
+        let pop = s.metal.as_ref().unwrap();
+        let pp = pop.cell_probability;
         let wo = direction(0.9, 0.3);
         for (name, wi) in [("peak", mirror_z(wo)), ("tail", direction(0.7, 0.3 + std::f64::consts::PI - 0.6))] {
+            // E[1/g] over uniform grid offsets (Monte Carlo error below 1e-5 here).
+            let sq = s.direction_square(p.binder_half_vector(wi, wo).unwrap());
+            let mut rng = Pcg32::new(5, 5);
+            let k = pop.cells as f64;
+            let offsets = 100_000;
+            let inv_g = (0..offsets)
+                .map(|_| {
+                    let o = [rng.uniform(), rng.uniform()];
+                    let j = [((sq[0] + o[0]).fract() * k) as u64, ((sq[1] + o[1]).fract() * k) as u64];
+                    1.0 / s.inverse_cos_mean(pop.cells, j, o)
+                })
+                .sum::<f64>()
+                / offsets as f64;
+            eprintln!("convergence {name}: E[1/⟨1/cos θm⟩] = {inv_g:.5}");
             let mut points = Vec::new();
             for &n in &[1.0, 10.0, 100.0, 1e3, 1e4, 1e5] {
                 let m = 400_000;
@@ -547,7 +851,7 @@ mod model_tests {
                     var.sqrt()
                 );
                 assert!((mean - 1.0).abs() <= 4.0 * se_mean, "{name} N {n}: mean {mean}");
-                assert!((var * lambda - 1.0).abs() <= 4.5 * se_var, "{name} N {n}: var·Np {}", var * lambda);
+                assert!((var * lambda - inv_g).abs() <= 4.5 * se_var, "{name} N {n}: var·Np {}", var * lambda);
                 points.push((n.ln(), var.ln()));
             }
             // Least-squares slope of ln var against ln N.
@@ -622,7 +926,8 @@ mod model_tests {
     /// (3) Density. One footprint (1000 flake areas: N = 20 flakes at 2 %, 80 at 8 %), the
     /// lobe peak, 200 000 positions. Asserted:
     /// - a single flake is equally bright at both densities (the smallest non-zero flake
-    ///   radiance agrees to 10⁻⁹), and every lit position shows a whole number of flakes;
+    ///   radiance agrees to 10⁻³, the spread of `⟨1/cos θm⟩` over the peak's direction cells),
+    ///   and every lit position shows a whole number of flakes;
     /// - the fraction of lit positions ("sparkle points": at least one flake in the cell) is
     ///   `1 − e^{−N p}` within 5 binomial standard errors: 0.067 → 0.242, ×3.6;
     /// - the relative variance (CV²) over positions is `1/(N p)`: it falls 4× (ratio within
@@ -648,8 +953,12 @@ mod model_tests {
             // Rounding of `f_at − rest` leaves ~1e-16 relative noise on unlit positions.
             let lit: Vec<f64> = values.iter().copied().filter(|v| *v > 1e-9 * mean_flakes).collect();
             let one = lit.iter().copied().fold(f64::INFINITY, f64::min);
+            // One flake's radiance is ∝ 1/⟨1/cos θm⟩ of its direction cell, which varies by
+            // at most 6.5e-4 over the cells the peak falls in (α 0.21, K 17): a whole number of
+            // flakes within 1e-3 (measured deviation up to 1.2e-4).
             for v in &lit {
-                assert!((v / one - (v / one).round()).abs() < 1e-9, "{v} is not a whole number of flakes of {one}");
+                let k = (v / one).round();
+                assert!((v / one - k).abs() < 1e-3 * k, "{v} is not a whole number of flakes of {one}");
             }
             let lit_fraction = lit.len() as f64 / values.len() as f64;
             let expect = 1.0 - (-lambda).exp();
@@ -666,7 +975,9 @@ mod model_tests {
             stats.push((one, lit_fraction, cv2));
         }
         let ((one2, lit2, cv2_2), (one8, lit8, cv2_8)) = (stats[0], stats[1]);
-        assert!((one2 / one8 - 1.0).abs() < 1e-9, "one flake: {one2} vs {one8}");
+        // The brightest single flake (largest per-cell share) at both densities: within 1e-3
+        // (see above; measured 1e-4).
+        assert!((one2 / one8 - 1.0).abs() < 1e-3, "one flake: {one2} vs {one8}");
         assert!(lit8 / lit2 > 3.3, "lit fraction ratio {}", lit8 / lit2);
         let ratio = cv2_2 / cv2_8;
         eprintln!("density 2 → 8 %: lit fraction ×{:.3}, CV² ÷{ratio:.3}", lit8 / lit2);
