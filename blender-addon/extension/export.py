@@ -8,14 +8,16 @@ point/spot/sun/area lights, the world, and the materials. The conversions:
   (x, y, z) to renderer (x, z, −y), a rotation, applied to every matrix, point and direction.
 * **Lights** are not surfaces, as in Cycles: the camera does not see area and sphere lights and
   they cast no shadows; rays that reach them collect their emission (``"surface": false``).
-* **Units**: 1 Blender unit = 1 m. Lights follow Cycles: a point light of power P watts has
-  intensity P/(4π) W/sr (a sphere of radiance P/(4π²r²) when its radius r > 0), a spot is a
+* **Units**: geometry, camera and lights in Blender units, as Cycles renders them (Cycles
+  ignores the scene's Unit Scale; only the flakes' physical size uses it, below). Lights
+  follow Cycles: a point light of power P watts has intensity P/(4π) W/sr (a sphere of radiance P/(4π²r²) when its radius r > 0), a spot is a
   point light masked by its cone (blend = the smooth fraction of the cone), a sun's strength is
   its irradiance in W/m², an area light of power P and area A has radiance P/(πA).
 * **Sparkle uv**: the renderer's sparkle needs uv in physical units. Every triangle gets its own
-  planar uv: its corners' object coordinates × the instance's per-axis scale (metres on the
-  object, as the node group's Voronoi cells use), in an orthonormal frame of its plane. One uv
-  unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` = 1000), so
+  planar uv: its corners' object coordinates × the per-axis scale of the instance's world matrix
+  (parents and instancers included) × the scene's Unit Scale (metres per Blender unit) — metres
+  on the object, as the node group's Voronoi cells use — in an orthonormal frame of its plane.
+  One uv unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` = 1000), so
   flakes have their true size and stick to the object.
 * **Materials**: a Lacquer material is its paint parameters exactly; any other material is
   read from its Principled BSDF into ``{"model": "principled", ...}`` (a Diffuse BSDF into
@@ -79,7 +81,8 @@ def _b64(a: np.ndarray, dtype) -> str:
 
 def _mesh_arrays(mesh, axis_scale) -> dict:
     """Unwelded triangle arrays of an evaluated mesh: per-corner positions and normals (object
-    space), planar uv in metres (object space × the instance's per-axis scale), and the material
+    space), planar uv in metres (object space × ``axis_scale``, metres per object unit along
+    each axis), and the material
     index of each triangle."""
     mesh.calc_loop_triangles()
     tris = mesh.loop_triangles
@@ -415,6 +418,9 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
     objects: list = []
     lights: list = []
     mesh_cache: dict = {}
+    unit_m = float(scene.unit_settings.scale_length)  # metres per Blender unit
+    if not unit_m > 0.0:
+        raise ValueError(f"the scene's Unit Scale is {unit_m}: it must be positive")
     for inst in depsgraph.object_instances:
         ob = inst.instance_object if inst.is_instance else inst.object
         matrix = inst.matrix_world.copy()
@@ -425,7 +431,11 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
             if ob.type in {"VOLUME", "POINTCLOUD", "GPENCIL", "GREASEPENCIL"}:
                 report.warn(f"object \"{ob.name}\": {ob.type.lower()} objects are not rendered by LACQUER")
             continue
-        axis_scale = tuple(round(float(x), 6) for x in matrix.to_scale())
+        # Metres per object unit along each object axis: the world transform's column lengths
+        # (parents and instancers included; the node group's Vector Transform Object → World
+        # measures the same) × the scene's metres per Blender unit.
+        # 7 significant digits: the mesh cache's key (relative, so tiny scales do not round to 0).
+        axis_scale = tuple(float(f"{float(x) * unit_m:.7g}") for x in matrix.to_scale())
         key = (ob.name, ob.data.name if ob.data else "", ob.type, axis_scale)
         if ob.type == "MESH" and ob.data is not None:
             # Instances and linked duplicates share the evaluated mesh: export it once per

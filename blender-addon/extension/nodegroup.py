@@ -17,7 +17,9 @@ this in the mean-lobe limit):
   core's fit (docs/blender-fit.md) models the group.
 
 * **Sparkle = 1** (per-cell flakes): the surface is cut into Voronoi cells (3D, F1, randomness 1)
-  of object coordinates × the object's scale, i.e. metres on the object. The cell scale is
+  of object coordinates × the per-axis scale of the object's world transform (parents and
+  instances included) × the scene's Unit Scale, i.e. metres on the object, as LACQUER's export
+  computes them (``export._mesh_arrays``). The cell scale is
   ``0.937 / Flake Size`` (per metre): a plane through such a Voronoi diagram has cells of mean
   area ``0.69 / scale²`` = one flake's area ``π (Flake Size)² / 4`` (measured by Monte Carlo on
   Blender's jittered-grid Voronoi). Each cell's three random values (the Voronoi Color r, g, b)
@@ -46,7 +48,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 3
+NODE_GROUP_VERSION = 4
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -61,7 +63,7 @@ INPUTS = (
     ("Flake Coverage", "NodeSocketFloat", 0.03, 0.0, 1.0, "Area fraction of metallic flakes"),
     ("Flake Roughness", "NodeSocketFloat", 0.05, 0.0, 1.0, "Principled roughness of one flake's surface"),
     ("Flake Spread", "NodeSocketFloat", 0.21, 0.0, 1.0, "GGX α of the distribution of flake normals"),
-    ("Flake Size", "NodeSocketFloat", 20.0, 0.1, 10000.0, "Flake diameter in µm (world units: 1 unit = 1 m)"),
+    ("Flake Size", "NodeSocketFloat", 20.0, 0.1, 10000.0, "Flake diameter in µm (in the world: units × the scene's Unit Scale = metres)"),
     ("Pearl Coverage", "NodeSocketFloat", 0.0, 0.0, 1.0, "Area fraction of pearlescent flakes"),
     ("Pearl Color", "NodeSocketColor", (0.8, 0.8, 0.8), None, None, "Base Color of the pearl flakes"),
     ("Pearl Film Thickness", "NodeSocketFloat", 120.0, 0.0, 100000.0, "Thin film thickness on pearls (nm)"),
@@ -152,9 +154,33 @@ def _build(group):
     N = geo.outputs["Normal"]
     incoming = geo.outputs["Incoming"]
     texco = b.node("ShaderNodeTexCoord", -1800, 900)
-    scale_attr = b.node("ShaderNodeAttribute", -1800, 1100, attribute_type="OBJECT", attribute_name="scale")
-    # Object coordinates in metres on the object (× its scale), so flakes stick to the object.
-    P = b.vmath("MULTIPLY", texco.outputs["Object"], scale_attr.outputs["Vector"], x=-1600, y=1000)
+    # Object coordinates in metres on the object, so flakes stick to it: object coordinates ×
+    # the per-axis scale of the object → world transform × the scene's metres per unit.
+    # The world scale is the length of each object axis mapped to world space by a Vector
+    # Transform (Object → World, type Vector: the 3×3 of the render's own object matrix, not
+    # normalised). Cycles and EEVEE evaluate it per object *and per instance* with the matrix
+    # they render (parents, collection and geometry-node instances included), which is what
+    # LACQUER's export uses (``matrix_world.to_scale()``: the same column lengths). Rejected: the
+    # object's ``scale`` (an Object attribute, or Object Info) is the local scale, blind to
+    # parents and instancers; drivers or a custom property refreshed from ``matrix_world`` live
+    # on the shared node group or on the object, so they cannot differ per instance, go stale
+    # under animation and need the extension at render time (farms render without it).
+    axes = []
+    for k, axis in enumerate(((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))):
+        vt = b.node("ShaderNodeVectorTransform", -1800, 1300 + 120 * k, vector_type="VECTOR",
+                    convert_from="OBJECT", convert_to="WORLD")
+        vt.inputs["Vector"].default_value = axis
+        axes.append(b.vmath("LENGTH", vt.outputs["Vector"], x=-1650, y=1300 + 120 * k))
+    world_scale = b.node("ShaderNodeCombineXYZ", -1500, 1400)
+    for k in range(3):
+        b.feed(world_scale.inputs[k], axes[k])
+    # Metres per Blender unit: the scene's Unit Scale, read live by a View Layer attribute (an
+    # RNA path the renderer resolves on the view layer, then the scene), so changing it needs no
+    # refit; a physical flake keeps its size in metres, i.e. covers 1/scale_length more units.
+    unit = b.node("ShaderNodeAttribute", -1800, 1100, attribute_type="VIEW_LAYER",
+                  attribute_name="unit_settings.scale_length")
+    metres = b.vmath("SCALE", world_scale.outputs["Vector"], scale=unit.outputs["Fac"], x=-1400, y=1300)
+    P = b.vmath("MULTIPLY", texco.outputs["Object"], metres, x=-1600, y=1000)
 
     # A tangent frame around N (the helper axis switches near the poles).
     nz = b.node("ShaderNodeSeparateXYZ", -1600, 700)

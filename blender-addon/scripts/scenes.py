@@ -20,6 +20,9 @@ Scenes:
             bevel modifier and its linked duplicate, Diffuse BSDFs: transforms and instancing
   principled  a sphere with a plain Principled BSDF (coat, metallic, thin film): LACQUER's
             approximation of non-Lacquer materials by the core's `principled` model
+  flakescale  gold_flake_8 on plates parented under a 0.01 root, plain, and collection instances
+            scaled 0.5 and 0.25, at Unit Scale 1 and 0.5: the flake cells' coordinate rendered by
+            Cycles (an emission copy of the node group) and LACQUER's exported sparkle uv
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
             also writes a side-by-side PNG (Cycles | LACQUER) with --png
 
@@ -340,6 +343,106 @@ def scene_instances(size, spp):
     return scene, {}
 
 
+#: The flake-scale scene: (name, world centre x, world width in Blender units) of each plate.
+#: Unit Scales (metres per Blender unit) the flake-scale scene is rendered with.
+FLAKESCALE_UNITS = (1.0, 0.5)
+FLAKESCALE_PLATES = (("fbx_child", -3.75, 2.0), ("plain", -1.25, 2.0), ("instance_half", 1.25, 2.0),
+                     ("instance_quarter", 3.5, 1.0))
+
+
+def scene_flakescale(size, spp, unit_scale):
+    """Four plates seen from above by an orthographic camera, one gold_flake_8 material: a 200 cm
+    mesh under an FBX-like root empty scaled 0.01 (and turned), a plain 2 m plate (scale 1), and
+    two collection instances of one 4 m plate scaled 0.5 and 0.25 by their instancers; the
+    scene's Unit Scale is ``unit_scale``. Every plate should get the same flakes per Blender unit."""
+    scene = fresh_scene(size, spp)
+    scene.unit_settings.scale_length = unit_scale
+    set_world(scene, (0.5, 0.5, 0.5))
+    cam = add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 10.0
+    scene.render.resolution_x, scene.render.resolution_y = size, size // 4
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(-1.25, 0.0, 0.0))
+    plain = bpy.context.object
+    mat = assign(plain, "gold_flake_8")
+    root = bpy.data.objects.new("FBX root", None)
+    root.scale = (0.01, 0.01, 0.01)
+    root.rotation_euler = (0.0, 0.0, 0.3)
+    root.location = (-3.75, 0.0, 0.0)
+    scene.collection.objects.link(root)
+    bpy.ops.mesh.primitive_plane_add(size=200.0)  # centimetres, as an FBX in cm stores them
+    child = bpy.context.object
+    child.parent = root
+    child.rotation_euler = (0.0, 0.0, -0.3)  # square to the camera again
+    child.data.materials.append(mat)
+    proto = bpy.data.collections.new("Plate proto")
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plate = bpy.context.object
+    for c in list(plate.users_collection):
+        c.objects.unlink(plate)
+    proto.objects.link(plate)
+    plate.data.materials.append(mat)
+    for name, x, width in FLAKESCALE_PLATES[2:]:
+        empty = bpy.data.objects.new(name, None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = proto
+        empty.scale = (width / 4.0,) * 3
+        empty.location = (x, 0.0, 0.0)
+        scene.collection.objects.link(empty)
+    return scene, {"gold_flake_8": mat}
+
+
+def flake_coordinate_material(mat):
+    """A copy of ``mat`` whose copy of the node group emits the metallic flakes' Voronoi input
+    coordinate (metres on the object) instead of the paint: the cells Cycles cuts, readable."""
+    probe = mat.copy()
+    node = probe.node_tree.nodes["Lacquer Paint"]
+    group = node.node_tree.copy()
+    node.node_tree = group
+    vors = [n for n in group.nodes if n.bl_idname == "ShaderNodeTexVoronoi"]
+    # The metallic layer's Voronoi reads P itself; the pearls' reads P + an offset (ADD).
+    flake = [v for v in vors if v.inputs["Vector"].links[0].from_node.operation != "ADD"]
+    assert len(vors) == 2 and len(flake) == 1, [v.inputs["Vector"].links[0].from_node.operation for v in vors]
+    coord = flake[0].inputs["Vector"].links[0].from_socket
+    em = group.nodes.new("ShaderNodeEmission")
+    group.links.new(coord, em.inputs["Color"])
+    out = next(n for n in group.nodes if n.bl_idname == "NodeGroupOutput")
+    group.links.new(em.outputs[0], out.inputs[0])
+    return probe
+
+
+def lacquer_flake_scale(scene) -> dict:
+    """What LACQUER's export hands the renderer for each plate: the sparkle uv's metres per world
+    Blender unit (the singular values of d uv / d world position on every triangle, × the
+    material's surface_scale_mm / 1000 m). Plates are told apart by their world x."""
+    import importlib
+
+    export = importlib.import_module(ADDON + ".export")
+    import numpy as np
+
+    def arr(b64, dtype, cols):
+        import base64
+
+        return np.frombuffer(base64.b64decode(b64[len("base64:"):]), dtype=np.dtype(dtype).newbyteorder("<")) \
+            .reshape(-1, cols).astype(np.float64)
+
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    desc = export.scene_desc(depsgraph, scene.render.resolution_x, scene.render.resolution_y, export.Report(), [])
+    out = {}
+    for ob in desc["objects"]:
+        mesh = desc["meshes"][ob["mesh"]]
+        m = np.array(ob["transform"]["matrix"], np.float64)
+        p = arr(mesh["positions"], np.float32, 3) @ m[:3, :3].T + m[:3, 3]
+        uv = arr(mesh["uvs"], np.float32, 2) * ob["material"]["surface_scale_mm"] / 1000.0
+        p, uv = p.reshape(-1, 3, 3), uv.reshape(-1, 3, 2)
+        sv = []
+        for e, f in zip(p[:, 1:] - p[:, :1], uv[:, 1:] - uv[:, :1]):
+            sv.extend(np.linalg.svd(f.T @ np.linalg.pinv(e.T), compute_uv=False).tolist())
+        name = min(FLAKESCALE_PLATES, key=lambda t: abs(t[1] - p[..., 0].mean()))[0]  # renderer x = Blender x
+        out[name] = {"metres_per_unit_min": min(sv), "metres_per_unit_max": max(sv)}
+    return out
+
+
 def scene_principled(size, spp):
     scene = fresh_scene(size, spp)
     set_world(scene, (0.5, 0.5, 0.5))
@@ -512,6 +615,9 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
+            elif name == "flakescale":
+                for u in FLAKESCALE_UNITS:
+                    jobs.append((f"flakescale_{u}", lambda u=u: scene_flakescale(a.size, a.spp, u)))
             else:
                 raise SystemExit(f"unknown scene {name}")
         for name, build in jobs:
@@ -526,6 +632,15 @@ def main(argv):
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
             this = [(e, e.lower()) for e in engines]
+            if name.startswith("flakescale_"):
+                # The cells' coordinate rendered by Cycles, and LACQUER's export read directly.
+                this = [("CYCLES", "cycles_coord")]
+                report.setdefault("flakescale", {})[name] = lacquer_flake_scale(scene)
+                mat = mats["gold_flake_8"]
+                probe = flake_coordinate_material(mat)
+                for ob in bpy.data.objects:
+                    if ob.type == "MESH":
+                        ob.data.materials[0] = probe
             if name == "compare" and "CYCLES" in engines:
                 this.append(("CYCLES", "cycles_mean"))  # Sparkle 0: the mean lobe the core fits
             if a.eevee and name == "compare":

@@ -72,7 +72,7 @@ def _run(args, resources, timeout=900):
 def renders():
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
     log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
-                "--scenes", "compare,density,lights,instances,principled", "--blend", "--eevee"],
+                "--scenes", "compare,density,lights,instances,principled,flakescale", "--blend", "--eevee"],
                out / "user-resources")
     report = json.loads((out / "report.json").read_text())
     yield {"dir": out, "report": report, "log": log}
@@ -263,6 +263,65 @@ def test_instances_transforms_and_material_slots(renders):
                             "lacquer": ml.round(5).tolist(), "rel": round(rel, 5)}
     assert iou > 0.995, FIGURES["instances"]
     assert rel < LIGHTS_TOL, FIGURES["instances"]
+
+
+#: The flake-scale scene (scripts/scenes.py: scene_flakescale), mirrored here: Unit Scales, then
+#: (name, world centre x, world width) of each plate; ortho camera 10 units wide over SIZE pixels.
+FLAKESCALE_UNITS = (1.0, 0.5)
+FLAKESCALE_PLATES = (("fbx_child", -3.75, 2.0), ("plain", -1.25, 2.0), ("instance_half", 1.25, 2.0),
+                     ("instance_quarter", 3.5, 1.0))
+#: Metres of flake-cell coordinate per world Blender unit must be the Unit Scale on every plate,
+#: in Cycles (fitted to the rendered coordinate: measured within 2e-5 relative, bpy 4.5 and 5.0)
+#: and in LACQUER's export (exact up to float32 uv: measured within 1e-6). Before the fix, the
+#: FBX child had 100×, the instances 2× and 4× the plain plate's in Cycles, and neither
+#: engine followed the Unit Scale: any tolerance below 2× tells them apart.
+FLAKESCALE_TOL = 1e-3
+
+
+def _cycles_metres_per_unit(img, x, width):
+    """The rendered coordinate P (3 channels) on one plate fitted as P = a + b·col + c·row: the
+    singular values of [b c] per world unit (10/SIZE units per pixel); the fit's residual."""
+    units_per_px = 10.0 / img.shape[1]
+    lo = (x - width / 2 + 5.0) / units_per_px + 1.0  # one pixel in from the plate's edges
+    hi = (x + width / 2 + 5.0) / units_per_px - 2.0
+    rows, cols = np.nonzero(img[..., 3] > 0.999)
+    keep = (cols >= lo) & (cols <= hi)
+    rows, cols = rows[keep], cols[keep]
+    assert len(rows) > 50, (x, len(rows))
+    a = np.stack([np.ones(len(rows)), cols, rows], axis=1).astype(np.float64)
+    p = img[rows, cols, :3].astype(np.float64)
+    coef, *_ = np.linalg.lstsq(a, p, rcond=None)
+    resid = float(np.abs(a @ coef - p).max())
+    sv = np.linalg.svd(coef[1:].T, compute_uv=False) / units_per_px
+    return float(sv.min()), float(sv.max()), resid
+
+
+def test_flake_scale_is_world_and_unit_scale_in_both_engines(renders):
+    """Flake cells per world unit are the same on a plate under a 0.01 FBX-like root, a plain
+    plate, and two collection instances of one mesh scaled 0.5 and 0.25 — in Cycles (the node
+    group's cell coordinate, rendered) and in LACQUER (its exported sparkle uv) — and follow the
+    scene's Unit Scale, so that a flake's physical size in metres never changes."""
+    d = renders["dir"]
+    figures = {}
+    for unit in FLAKESCALE_UNITS:
+        name = f"flakescale_{unit}"
+        img = read_exr(d / f"{name}_cycles_coord.exr")
+        lq = renders["report"]["flakescale"][name]
+        for plate, x, width in FLAKESCALE_PLATES:
+            c_min, c_max, resid = _cycles_metres_per_unit(img, x, width)
+            l_min, l_max = lq[plate]["metres_per_unit_min"], lq[plate]["metres_per_unit_max"]
+            figures[f"{unit} {plate}"] = {"cycles": [round(c_min, 7), round(c_max, 7)],
+                                          "lacquer": [round(l_min, 7), round(l_max, 7)], "fit_residual": resid}
+    FIGURES["flake_scale"] = figures
+    print("\nFlake-cell metres per world unit (min/max singular value), Cycles | LACQUER:")
+    for k, f in figures.items():
+        print(f"  unit {k}: {f['cycles']} | {f['lacquer']}")
+    for k, f in figures.items():
+        unit = float(k.split()[0])
+        # Identical on every plate and in both engines: the Unit Scale (metres per Blender unit),
+        # i.e. a flake of Flake Size µm covers Flake Size/unit µm-units whatever the parenting.
+        for v in (*f["cycles"], *f["lacquer"]):
+            assert abs(v / unit - 1.0) <= FLAKESCALE_TOL, (k, f)
 
 
 def test_principled_materials_are_approximated_with_a_message(renders):
