@@ -271,8 +271,9 @@ FLAKESCALE_UNITS = (1.0, 0.5)
 FLAKESCALE_PLATES = (("fbx_child", -3.75, 2.0), ("plain", -1.25, 2.0), ("instance_half", 1.25, 2.0),
                      ("instance_quarter", 3.5, 1.0))
 #: Metres of flake-cell coordinate per world Blender unit must be the Unit Scale on every plate,
-#: in Cycles (fitted to the rendered coordinate: measured within 2e-5 relative, bpy 4.5 and 5.0)
-#: and in LACQUER's export (exact up to float32 uv: measured within 1e-6). Before the fix, the
+#: in Cycles (fitted to the rendered coordinate, 32 spp: measured within 4.3e-4 relative on bpy
+#: 4.5.15 and 3.0e-4 on 5.0.1, worst on the smallest plate — the pixel samples' jitter) and in
+#: LACQUER's export (exact up to float32: measured within 2.3e-8). Before the fix, the
 #: FBX child had 100×, the instances 2× and 4× the plain plate's in Cycles, and neither
 #: engine followed the Unit Scale: any tolerance below 2× tells them apart.
 FLAKESCALE_TOL = 1e-3
