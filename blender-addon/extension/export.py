@@ -10,15 +10,16 @@ point/spot/sun/area lights, the world, and the materials. The conversions:
   they cast no shadows; rays that reach them collect their emission (``"surface": false``).
 * **Units**: geometry, camera and lights in Blender units, as Cycles renders them (Cycles
   ignores the scene's Unit Scale; only the flakes' physical size uses it, below). Lights
-  follow Cycles: a point light of power P watts has intensity P/(4π) W/sr (a sphere of radiance P/(4π²r²) when its radius r > 0), a spot is a
-  point light masked by its cone (blend = the smooth fraction of the cone), a sun's strength is
-  its irradiance in W/m², an area light of power P and area A has radiance P/(πA).
+  follow Cycles: a point light of power P watts has intensity P/(4π) W/sr (a sphere of
+  radiance P/(4π²r²) when its radius r > 0), a spot is a point light masked by its cone
+  (blend = the smooth fraction of the cone), a sun's strength is its irradiance in W/m², an
+  area light of power P and area A has radiance P/(πA).
 * **Sparkle uv**: the renderer's sparkle needs uv in physical units. Every triangle gets its own
   planar uv: its corners' object coordinates × the per-axis scale of the instance's world matrix
   (parents and instancers included) × the scene's Unit Scale (metres per Blender unit) — metres
   on the object, as the node group's Voronoi cells use — in an orthonormal frame of its plane.
-  One uv unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` = 1000), so
-  flakes have their true size and stick to the object.
+  One uv unit is one metre everywhere, whatever UV map the mesh has (``surface_scale_mm`` =
+  1000), so flakes have their true size and stick to the object.
 * **Materials**: a Lacquer material is its paint parameters exactly; any other material is
   read from its Principled BSDF into ``{"model": "principled", ...}`` (a Diffuse BSDF into
   ``lambert``), with a message naming what was approximated.
@@ -82,8 +83,7 @@ def _b64(a: np.ndarray, dtype) -> str:
 def _mesh_arrays(mesh, axis_scale) -> dict:
     """Unwelded triangle arrays of an evaluated mesh: per-corner positions and normals (object
     space), planar uv in metres (object space × ``axis_scale``, metres per object unit along
-    each axis), and the material
-    index of each triangle."""
+    each axis), and the material index of each triangle."""
     mesh.calc_loop_triangles()
     tris = mesh.loop_triangles
     n = len(tris)
