@@ -120,6 +120,10 @@ if [ "$skip_valgrind" = 0 ]; then
             --errors-for-leak-kinds=definite,indirect,possible --show-leak-kinds=definite,indirect,possible \
             "$bin/$exe"
     done
+    # Race detection on the threaded consumer (docs/reliability.md): DRD, 4 threads x 4096
+    # elements plus the create/free threads; any reported conflict fails the step.
+    step "valgrind --tool=drd threads (4 threads x 4096)" \
+        valgrind -q --tool=drd --error-exitcode=1 "$bin/threads" 4096 4
 fi
 
 # --- 5. Python wheel and pytest -------------------------------------------------------------------
