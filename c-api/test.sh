@@ -95,6 +95,10 @@ step "gcc -std=c99 consumer.c (pkg-config lacquer-static)" \
 step "g++ -std=c++17 consumer.cpp (pkg-config lacquer)" \
     g++ -std=c++17 -pedantic -Wall -Wextra -Werror -O1 -g "$here/examples/consumer.cpp" \
         $(pkg-config --cflags --libs lacquer) -pthread "$rpath" -o "$bin/consumer_cpp"
+# shellcheck disable=SC2046
+step "gcc -std=c99 threads.c (pthreads, pkg-config lacquer)" \
+    gcc -std=c99 -pedantic -Wall -Wextra -Werror -O1 -g "$here/examples/threads.c" \
+        $(pkg-config --cflags --libs lacquer) -pthread "$rpath" -o "$bin/threads"
 step "cmake find_package(lacquer)" bash -c "
     cmake -S '$here/examples/cmake' -B '$work/cmake-build' -DCMAKE_PREFIX_PATH='$prefix' \
           -DCMAKE_BUILD_TYPE=Debug -DCMAKE_BUILD_RPATH='$prefix/lib' >/dev/null &&
@@ -106,12 +110,20 @@ done
 for exe in consumer_cpp consumer_c_static; do
     step "run cmake-built $exe" "$work/cmake-build/$exe"
 done
+# Concurrency (docs/reliability.md): 8 threads x 2e5 evaluations and samples on shared
+# materials, bit-identical to one thread, with materials created and freed meanwhile. The full
+# size is `threads 10000000 8`.
+step "run threads (8 threads x 2e5 evaluations, bit-identical to one thread)" "$bin/threads" 200000 8
 if [ "$skip_valgrind" = 0 ]; then
     for exe in consumer_c consumer_c_static consumer_cpp; do
         step "valgrind $exe" valgrind -q --error-exitcode=1 --leak-check=full --suppressions="$here/valgrind.supp" \
             --errors-for-leak-kinds=definite,indirect,possible --show-leak-kinds=definite,indirect,possible \
             "$bin/$exe"
     done
+    # Race detection on the threaded consumer (docs/reliability.md): DRD, 4 threads x 4096
+    # elements plus the create/free threads; any reported conflict fails the step.
+    step "valgrind --tool=drd threads (4 threads x 4096)" \
+        valgrind -q --tool=drd --error-exitcode=1 "$bin/threads" 4096 4
 fi
 
 # --- 5. Python wheel and pytest -------------------------------------------------------------------

@@ -87,7 +87,7 @@ venv="$(bash scripts/python-env.sh)"
 "$venv/bin/python" -m pytest -q -rs -p lacquer_no_skip tests/test_render_exr.py tests/test_fit_mitsuba.py
 
 export LACQUER_VENV="$venv"  # the Mitsuba plugin's tests share the pinned test venv
-for extra in c-api/test.sh mitsuba-plugin/test.sh blender-addon/test.sh; do
+for extra in c-api/test.sh mitsuba-plugin/test.sh blender-addon/test.sh fuzz/smoke.sh; do
   [ -f "$extra" ] || { echo "sub-suite $extra is missing: a missing suite fails CI" >&2; exit 1; }
 done
 step "bench/vs_mitsuba.py --quick (Lacquer C ABI vs Mitsuba 3 built-ins, smoke)"
@@ -95,6 +95,10 @@ python3 bench/vs_mitsuba.py --quick >/dev/null
 
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
+# Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 15 s each from their
+# committed corpora; installs cargo-fuzz when absent and fails without the nightly toolchain.
+step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 15 s)"
+bash fuzz/smoke.sh
 step "mitsuba-plugin/test.sh"
 bash mitsuba-plugin/test.sh
 step "blender-addon/test.sh"

@@ -41,6 +41,23 @@ pub const SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 pub const HORIZON: f64 = 1e-6;
 /// Size of a MERL file in bytes.
 pub const FILE_BYTES: usize = 12 + 3 * N_ENTRIES * 8;
+/// The largest BRDF value (1/sr, after the channel scale) a table entry may hold; a file with a
+/// larger finite value is rejected ([`TableError::OutOfRange`]), and [`MerlTable::from_fn`] and
+/// [`MerlTable::set`] store one as "no measurement".
+///
+/// Why 1e10: a passive surface reflects at most what arrives, `∫ f cos θi dωi ≤ 1`. The table
+/// cannot resolve a lobe narrower than its first `θh` cell, `θh ≤ θh(1) = (1/90)²·π/2 =
+/// 1.94e-4 rad`; tilting the half vector by `θh` moves `wi` by `2θh` in the plane of incidence
+/// and by `2θh cos θd` across it, so that cell covers `Ω ≈ π (2θh(1))² cos θd = 4.7e-7 cos θd`
+/// sr around the mirror direction, where `cos θi = cos θd`. A value above
+/// `1 / (Ω cos θi) = 2.1e6 / cos² θd` would reflect more than all incident light from that cone
+/// alone; at the most grazing node above the horizon (`θd(89) = 89°`, `cos θd = 0.0175`) that is
+/// 6.9e9 1/sr, rounded up to 1e10. For comparison, tables sampled from Mitsuba's rough
+/// plastic and rough conductor at the nodes (`tests/test_fit_mitsuba.py`) peak at 1039 and
+/// 495 1/sr, and the sharpest rough conductor Lacquer builds (α = 0.001) tabulated here at
+/// 2.6e8 (a test keeps it accepted). The bound is 28 orders of magnitude below `f32::MAX`, so
+/// no accepted entry, nor a sum of eight interpolated ones, overflows the f32 `eval`.
+pub const MAX_BRDF: f64 = 1e10;
 
 /// Why a table file was rejected.
 #[derive(Clone, Debug, PartialEq)]
@@ -53,6 +70,8 @@ pub enum TableError {
     Size(String),
     /// A value is NaN or infinite.
     NotFinite(String),
+    /// A finite value above [`MAX_BRDF`] after scaling (e.g. a flipped exponent byte).
+    OutOfRange(String),
 }
 
 impl fmt::Display for TableError {
@@ -62,6 +81,7 @@ impl fmt::Display for TableError {
             TableError::Header(m) => write!(f, "not a MERL table: {m}"),
             TableError::Size(m) => write!(f, "MERL table has the wrong size: {m}"),
             TableError::NotFinite(m) => write!(f, "MERL table holds a non-finite value: {m}"),
+            TableError::OutOfRange(m) => write!(f, "MERL table holds a value no reflectance can have: {m}"),
         }
     }
 }
@@ -169,7 +189,8 @@ impl MerlTable {
     }
 
     /// Tabulates `f(wi, wo)` (RGB, 1/sr) at every node above the horizon, on all cores.
-    /// `None` or a negative or non-finite value leaves the entry without a measurement.
+    /// `None` or a negative, non-finite or above-[`MAX_BRDF`] value leaves the entry without a
+    /// measurement.
     #[must_use]
     pub fn from_fn(f: impl Fn(Vec3<f64>, Vec3<f64>) -> Option<[f64; 3]> + Sync) -> Self {
         let rows: Vec<Vec<[f64; 3]>> = super::parallel_rows(N_THETA_H, |ih| {
@@ -178,7 +199,7 @@ impl MerlTable {
                 for ip in 0..N_PHI_D {
                     if let Some((wi, wo)) = Self::node_directions(ih, id, ip) {
                         if let Some(v) = f(wi, wo) {
-                            if v.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                            if v.iter().all(|x| (0.0..=MAX_BRDF).contains(x)) {
                                 row[ip + N_PHI_D * id] = v;
                             }
                         }
@@ -203,11 +224,13 @@ impl MerlTable {
         [self.values[idx], self.values[idx + N_ENTRIES], self.values[idx + 2 * N_ENTRIES]]
     }
 
-    /// Sets entry `idx` (negative channels mark no measurement).
+    /// Sets entry `idx` (negative channels mark no measurement). A channel that is NaN or above
+    /// [`MAX_BRDF`] (infinity included) is stored as no measurement: no table entry can make
+    /// the f32 `eval` overflow.
     #[inline]
     pub fn set(&mut self, idx: usize, v: [f64; 3]) {
         for (c, x) in v.iter().enumerate() {
-            self.values[idx + c * N_ENTRIES] = *x;
+            self.values[idx + c * N_ENTRIES] = if *x <= MAX_BRDF { *x } else { -1.0 };
         }
     }
 
@@ -224,7 +247,8 @@ impl MerlTable {
         (0..N_ENTRIES).filter(|&i| self.is_valid(i)).count() as f64 / N_ENTRIES as f64
     }
 
-    /// Parses a MERL file's bytes: checks the header, the size and every value.
+    /// Parses a MERL file's bytes: checks the header, the size and every value (finite, and at
+    /// most [`MAX_BRDF`] after scaling; the error names the first offending entry).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, TableError> {
         let body = body_bytes(bytes)?;
         if bytes.len() != 12 + body {
@@ -239,17 +263,29 @@ impl MerlTable {
         for (n, chunk) in bytes[12..].chunks_exact(8).enumerate() {
             let raw = f64::from_le_bytes(chunk.try_into().expect("8 bytes"));
             let c = n / N_ENTRIES;
-            if !raw.is_finite() {
+            let where_ = || {
                 let i = n % N_ENTRIES;
-                return Err(TableError::NotFinite(format!(
-                    "{raw} in channel {} at θh index {}, θd index {}, φd index {}",
+                format!(
+                    "channel {} entry {i} (θh index {}, θd index {}, φd index {})",
                     ["red", "green", "blue"][c],
                     i / (N_THETA_D * N_PHI_D),
                     (i / N_PHI_D) % N_THETA_D,
                     i % N_PHI_D
+                )
+            };
+            if !raw.is_finite() {
+                return Err(TableError::NotFinite(format!("{raw} in {}", where_())));
+            }
+            let v = raw * SCALE[c];
+            if v > MAX_BRDF {
+                return Err(TableError::OutOfRange(format!(
+                    "stored {raw:e} (BRDF {v:e} 1/sr) in {}, above the bound of {MAX_BRDF:e} 1/sr \
+                     (lacquer::measured::merl::MAX_BRDF: more than a passive surface can reflect \
+                     at the table's resolution; a corrupted file?)",
+                    where_()
                 )));
             }
-            values.push(raw * SCALE[c]);
+            values.push(v);
         }
         Ok(Self { values })
     }
@@ -280,6 +316,7 @@ impl MerlTable {
         file.read_to_end(&mut bytes).map_err(io)?;
         Self::from_bytes(&bytes).map_err(|e| match e {
             TableError::NotFinite(m) => TableError::NotFinite(format!("{}: {m}", path.display())),
+            TableError::OutOfRange(m) => TableError::OutOfRange(format!("{}: {m}", path.display())),
             TableError::Size(m) => TableError::Size(format!("{}: {m} (the file changed while read)", path.display())),
             other => other,
         })
@@ -480,5 +517,97 @@ mod tests {
         // Interpolation between missing entries gives the valid one's value, never a mix with −1.
         assert_eq!(t.interpolate(&hd), [1.0, 2.0, 3.0]);
         assert_eq!(t.interpolate(&MerlTable::node(50, 50, 50)), [0.0; 3]);
+    }
+
+    /// A table file whose raw values are all `raw`, except that `put(n)` may replace value `n`.
+    fn file_with(put: impl Fn(usize) -> Option<f64>) -> Vec<u8> {
+        let mut bytes = MerlTable::from_fn(analytic).to_bytes();
+        for n in 0..3 * N_ENTRIES {
+            if let Some(v) = put(n) {
+                bytes[12 + 8 * n..20 + 8 * n].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        bytes
+    }
+
+    #[test]
+    fn absurd_finite_values_are_rejected_naming_the_entry() {
+        // Issue 16: 1e300 in every 97th value (finite in f64) used to be accepted, and the f32
+        // eval then returned +Inf for ~19 % of direction pairs.
+        let e = MerlTable::from_bytes(&file_with(|n| (n % 97 == 96).then_some(1e300))).unwrap_err();
+        assert!(matches!(e, TableError::OutOfRange(_)), "{e:?}");
+        let m = e.to_string();
+        assert!(m.contains("red entry 96 ") && m.contains("1e300") && m.contains("φd index 96"), "{m}");
+        // A value that fits in f64 and overflows f32 only after scaling (blue: × 1.66/1500).
+        let raw = 2.0 * f64::from(f32::MAX) / SCALE[2];
+        let at = 2 * N_ENTRIES + index(7, 8, 9);
+        let e = MerlTable::from_bytes(&file_with(|n| (n == at).then_some(raw))).unwrap_err();
+        assert!(e.to_string().contains("blue entry") && e.to_string().contains("θh index 7"), "{e}");
+        // A flipped top byte of a plausible value (0.3 · 1500 stored): exponent × 2^±512-ish.
+        let mut flipped = 450.0f64.to_le_bytes();
+        flipped[7] ^= 0x3c;
+        let e = MerlTable::from_bytes(&file_with(|n| (n == 1234).then_some(f64::from_le_bytes(flipped)))).unwrap_err();
+        assert!(e.to_string().contains("entry 1234"), "{e}");
+        // Just above and just below the bound (red scale 1/1500).
+        let over = MAX_BRDF * 1500.0 * (1.0 + 1e-9);
+        assert!(MerlTable::from_bytes(&file_with(|n| (n == 5).then_some(over))).is_err());
+        let under = MAX_BRDF * 1500.0 * (1.0 - 1e-9);
+        let t = MerlTable::from_bytes(&file_with(|n| (n == 5).then_some(under))).unwrap();
+        assert!(t.is_valid(5) && t.get(5)[0] > 0.99 * MAX_BRDF);
+        // Files go through the same check and name the path.
+        let p = std::env::temp_dir().join(format!("lacquer-merl-absurd-{}.binary", std::process::id()));
+        std::fs::write(&p, file_with(|n| (n % 97 == 96).then_some(1e300))).unwrap();
+        let e = MerlTable::read(&p).unwrap_err();
+        std::fs::remove_file(&p).ok();
+        assert!(e.to_string().contains("lacquer-merl-absurd") && e.to_string().contains("entry 96 "), "{e}");
+    }
+
+    #[test]
+    fn in_memory_absurd_values_are_marked_without_measurement() {
+        let mut t = MerlTable::empty();
+        t.set(3, [1e300, 0.5, 0.5]);
+        t.set(4, [0.5, f64::INFINITY, 0.5]);
+        t.set(5, [0.5, 0.5, f64::NAN]);
+        t.set(6, [0.5, MAX_BRDF, 0.5]);
+        assert!(!t.is_valid(3) && !t.is_valid(4) && !t.is_valid(5) && t.is_valid(6));
+        let t = MerlTable::from_fn(|_, _| Some([1e300, 1.0, 1.0]));
+        assert_eq!(t.valid_fraction(), 0.0);
+    }
+
+    #[test]
+    fn the_bound_keeps_the_f32_eval_finite_and_accepts_sharp_real_lobes() {
+        // Every entry at the bound: the f32 eval stays finite (the interpolation sums eight
+        // corners with weights summing to one).
+        let mut t = MerlTable::empty();
+        for i in 0..N_ENTRIES {
+            t.set(i, [MAX_BRDF; 3]);
+        }
+        let m = crate::measured::material_from_table(t);
+        let mut rng = Pcg32::new(16, 1);
+        for _ in 0..2000 {
+            let z = |r: &mut Pcg32| r.uniform() * 0.999 + 0.001;
+            let wi = super::super::parameterization::spherical(z(&mut rng).acos(), 2.0 * PI * rng.uniform());
+            let wo = super::super::parameterization::spherical(z(&mut rng).acos(), 2.0 * PI * rng.uniform());
+            let f = m.eval(wi.cast::<f32>(), wo.cast::<f32>());
+            assert!(f.r.is_finite() && f.g.is_finite() && f.b.is_finite(), "{f:?}");
+        }
+        // The sharpest rough conductor Lacquer builds (α = 0.001) tabulates below the bound
+        // (its peak, at the most grazing node, is ~2.6e8 1/sr: stated at MAX_BRDF).
+        let sharp =
+            crate::material::Material::from_json(r#"{"model": "rough_conductor", "alpha_u": 0.001, "alpha_v": 0.001}"#)
+                .unwrap();
+        let mut peak = 0.0f64;
+        let t = MerlTable::from_fn(|wi, wo| {
+            let f = sharp.model().eval(wi, wo);
+            Some([f[0], f[1], f[2]])
+        });
+        for i in 0..N_ENTRIES {
+            if t.is_valid(i) {
+                peak = peak.max(t.get(i).into_iter().fold(0.0, f64::max));
+            }
+        }
+        assert!((1e8..=3e8).contains(&peak), "peak {peak:e} 1/sr (stated at MAX_BRDF: ~2.6e8)");
+        let bytes = t.to_bytes();
+        assert_eq!(MerlTable::from_bytes(&bytes).unwrap().to_bytes(), bytes);
     }
 }

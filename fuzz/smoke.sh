@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Smoke run of the four fuzz targets (docs/reliability.md): each target runs for
+# LACQUER_FUZZ_SECONDS (default 15 s, so ~60 s of fuzzing in total) from its committed corpus
+# (fuzz/corpus/<target>, read only: new inputs go to a temporary directory), with hangs
+# (-timeout) and allocation blow-ups (-rss_limit_mb, -malloc_limit_mb) counted as failures.
+# Any crash, hang or leak fails the script; libFuzzer's reproducer is printed.
+#
+# Needs the nightly toolchain and cargo-fuzz. No silent skip: it installs cargo-fuzz (crates.io,
+# pinned) when absent, and fails if the nightly toolchain cannot be had.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+cd "$here"
+seconds="${LACQUER_FUZZ_SECONDS:-15}"
+targets=(material_json merl_table render_scene capi_calls)
+
+if ! rustup run nightly rustc --version >/dev/null 2>&1; then
+  echo "fuzz/smoke.sh: the nightly toolchain is missing; installing it (rustup toolchain install nightly)"
+  rustup toolchain install nightly --profile minimal \
+    || { echo "fuzz/smoke.sh: no nightly toolchain: cargo-fuzz needs it (this is a failure, not a skip)" >&2; exit 1; }
+fi
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  echo "fuzz/smoke.sh: installing cargo-fuzz"
+  cargo install cargo-fuzz --version 0.13.2 --locked \
+    || { echo "fuzz/smoke.sh: cannot install cargo-fuzz (this is a failure, not a skip)" >&2; exit 1; }
+fi
+cargo fuzz --version
+
+# A target directory of its own (instrumented builds never mix with the workspace's).
+export CARGO_TARGET_DIR="${LACQUER_FUZZ_TARGET_DIR:-$here/target}"
+cargo +nightly fuzz build
+work="$(mktemp -d "${TMPDIR:-/tmp}/lacquer-fuzz-smoke.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+for t in "${targets[@]}"; do
+  echo "=== fuzz $t: $seconds s"
+  mkdir -p "$work/$t"
+  # One process on one core (no -jobs: libFuzzer would fork and log to files); the first
+  # corpus directory (writable) is the temporary one.
+  rc=0
+  cargo +nightly fuzz run "$t" "$work/$t" "corpus/$t" -- \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
+    -print_final_stats=1 -artifact_prefix="$work/" >"$work/$t.log" 2>&1 || rc=$?
+  grep -E '^(Done [0-9]+ runs|stat::number_of_executed_units|stat::peak_rss_mb)' "$work/$t.log" || true
+  runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$t.log" | tail -1)"
+  if [ "$rc" != 0 ] || [ -z "$runs" ] || [ "$runs" = 0 ]; then
+    tail -40 "$work/$t.log" >&2
+    echo "fuzz/smoke.sh: $t failed (exit $rc, ${runs:-no} executions)" >&2
+    mkdir -p "$here/artifacts/$t"
+    cp "$work"/crash-* "$work"/timeout-* "$work"/oom-* "$work"/leak-* "$here/artifacts/$t/" 2>/dev/null || true
+    echo "reproduce: cargo +nightly fuzz run $t fuzz/artifacts/$t/<file>" >&2
+    exit 1
+  fi
+done
+echo "fuzz: ${#targets[@]} passed, 0 failed"
