@@ -118,8 +118,44 @@ fn unit_dir(cos_t: f64, phi: f64) -> Vec3<f64> {
     Vec3::new(s * phi.cos(), s * phi.sin(), cos_t)
 }
 
+/// The material of `info` from numbers in [0, 1), or the model's error.
+fn build_from_unit(info: &'static ModelInfo, u: &[f64]) -> Result<Material, String> {
+    let params = Params::parse(info.name, info.params, &params_from_unit(info, u)).map_err(|e| e.to_string())?;
+    Material::from_params(info, params).map_err(|e| e.to_string())
+}
+
+/// Most random parameter sets build, for every model: the property tests below skip
+/// (`prop_assume!`) the sets a model rejects, so a model whose builder always errored would
+/// pass them without a single check. Requires ≥ 90 % of 400 draws per model; measured: every
+/// model builds 100 % except the cross-parameter rules of cook_torrance,
+/// cook_torrance_1981, fast_phong, modified_phong, neumann_stretch_*, poulin_fournier,
+/// rough_conductor, rough_plastic, torrance_sparrow and ward* (`diffuse + specular ≤ 1` and
+/// alike), the worst of which builds MEASURED_WORST.
+#[test]
+fn random_parameters_mostly_build() {
+    let mut rng = lacquer::rng::Pcg32::new(0xb011d, 1);
+    let mut worst = (1.0f64, "");
+    for info in models::all() {
+        let n = 400;
+        let ok = (0..n)
+            .filter(|_| {
+                let u: Vec<f64> = (0..8).map(|_| rng.uniform()).collect();
+                build_from_unit(info, &u).is_ok()
+            })
+            .count();
+        let rate = ok as f64 / n as f64;
+        eprintln!("{}: {ok}/{n} random parameter sets build", info.name);
+        if rate < worst.0 {
+            worst = (rate, info.name);
+        }
+    }
+    assert!(worst.0 >= 0.9, "{} builds only {:.1} % of random parameter sets", worst.1, 100.0 * worst.0);
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(2000))]
+    // At most 200 rejected draws over the 2000 cases of a property (≥ 90.9 % built), besides
+    // the per-model rate of `random_parameters_mostly_build`.
+    #![proptest_config(ProptestConfig { cases: 2000, max_global_rejects: 200, ..ProptestConfig::default() })]
 
     /// Non-negative, finite, and reciprocal where claimed, for random valid parameters and
     /// directions (grazing included).
@@ -131,8 +167,9 @@ proptest! {
         co in prop_oneof![0.0f64..1.0, 1e-7f64..1e-3], po in 0.0f64..6.3,
     ) {
         let info = models::all()[model];
-        let Ok(params) = Params::parse(info.name, info.params, &params_from_unit(info, &u)) else { return Ok(()); };
-        let Ok(m) = Material::from_params(info, params) else { return Ok(()); };
+        let built = build_from_unit(info, &u);
+        prop_assume!(built.is_ok());
+        let m = built.expect("assumed");
         let (wi, wo) = (unit_dir(ci, pi), unit_dir(co, po));
         let f = m.eval(wi, wo);
         let g = m.eval(wo, wi);
@@ -159,8 +196,9 @@ proptest! {
         s in proptest::array::uniform3(0.0f64..1.0),
     ) {
         let info = models::all()[model];
-        let Ok(params) = Params::parse(info.name, info.params, &params_from_unit(info, &u)) else { return Ok(()); };
-        let Ok(m) = Material::from_params(info, params) else { return Ok(()); };
+        let built = build_from_unit(info, &u);
+        prop_assume!(built.is_ok());
+        let m = built.expect("assumed");
         let wo = unit_dir(co, po);
         if let Some(smp) = m.sample(wo, s) {
             prop_assert!(smp.wi.is_finite());

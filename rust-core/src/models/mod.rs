@@ -4,10 +4,46 @@
 //! implementing [`Bxdf`], then add one line to the `models!` list below.
 
 use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
-use crate::frame::both_above;
+use crate::frame::{above, both_above, HORIZON_COS};
 use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::real::Real;
+
+/// The `pdf` and `sample` of a [`Bxdf`] whose sampler is a shared lobe type (`self.$lobe`
+/// with `pdf(wi, wo)` and `sample_direction(wo, u)`: the Ward family's `WardLobes`, the Phong
+/// family's `MirrorLobe` and `HalfLobe`): the density is the lobe's, the sample's value the
+/// model's own `eval` at the sampled direction. Each model then writes only its `eval`.
+macro_rules! lobe_sampling {
+    ($lobe:ident) => {
+        #[inline]
+        fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+            self.$lobe.pdf(wi, wo)
+        }
+
+        #[inline]
+        fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+            let wi = self.$lobe.sample_direction(wo, u)?;
+            BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        }
+    };
+}
+
+/// The `pdf` and `sample` of a [`Bxdf`] sampled from the cosine lobe (the Oren-Nayar models:
+/// perturbed Lambertian lobes); the sample's value is the model's own `eval`.
+macro_rules! cosine_sampling {
+    () => {
+        #[inline]
+        fn pdf<T: Real>(&self, wi: Vec3<T>, _wo: Vec3<T>) -> T {
+            cosine_hemisphere_pdf(wi.z)
+        }
+
+        #[inline]
+        fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+            let wi = cosine_hemisphere(u[1], u[2]);
+            BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        }
+    };
+}
 
 macro_rules! models {
     ($($variant:ident($module:ident :: $ty:ident)),* $(,)?) => {
@@ -125,7 +161,7 @@ impl Model {
     #[inline]
     #[must_use]
     pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        if !(wo.z > T::zero()) {
+        if !above(wo.z) {
             return None;
         }
         Self::valid_sample(self.sample_unchecked(wo, u)?)
@@ -145,7 +181,7 @@ impl Model {
     #[inline]
     #[must_use]
     pub fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
-        if !(wo.z > T::zero()) {
+        if !above(wo.z) {
             return None;
         }
         Self::valid_sample(self.sample_at_unchecked(wo, u, at)?)
@@ -154,7 +190,7 @@ impl Model {
     #[inline]
     fn valid_sample<T: Real>(s: BsdfSample<T>) -> Option<BsdfSample<T>> {
         let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
-        (valid && (s.delta || s.wi.z > T::zero())).then_some(s)
+        (valid && (s.delta || above(s.wi.z))).then_some(s)
     }
 }
 
@@ -312,7 +348,7 @@ fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> LaneSample<L> {
         & lanes::gt(s.pdf, L::c(0.0))
         & lanes::is_finite(s.pdf)
         & s.wi.finite_mask()
-        & (s.delta | lanes::gt(s.wi.z, L::c(0.0)));
+        & (s.delta | lanes::gt(s.wi.z, L::c(HORIZON_COS)));
     let finite_weight = lanes::is_finite(s.weight.r) & lanes::is_finite(s.weight.g) & lanes::is_finite(s.weight.b);
     LaneSample { valid: valid & finite_weight, ..s }
 }
@@ -321,18 +357,18 @@ impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
     const NATIVE: bool = true;
     #[inline(always)]
     fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
         let f = self.0.eval_lanes(above_or_up(above, wi), above_or_up(above, wo));
         Rgb::select(above, f, Rgb::zero())
     }
     #[inline(always)]
     fn pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
-        let above = lanes::gt(wi.z, L::c(0.0)) & lanes::gt(wo.z, L::c(0.0));
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
         lanes::keep(above, self.0.pdf_lanes(above_or_up(above, wi), above_or_up(above, wo)))
     }
     #[inline(always)]
     fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let above = lanes::gt(wo.z, L::c(0.0));
+        let above = lanes::gt(wo.z, L::c(HORIZON_COS));
         checked_sample(self.0.sample_lanes(above_or_up(above, wo), u), above)
     }
 }
@@ -350,7 +386,7 @@ impl LaneKernel for ScalarLoop<'_> {
     }
     #[inline(always)]
     fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let above = lanes::gt(wo.z, L::c(0.0));
+        let above = lanes::gt(wo.z, L::c(HORIZON_COS));
         checked_sample(self.0.sample_per_lane(above_or_up(above, wo), u), above)
     }
 }
