@@ -135,7 +135,7 @@ fn build_from_unit(info: &'static ModelInfo, u: &[f64]) -> Result<Material, Stri
 fn random_parameters_mostly_build() {
     let mut rng = lacquer::rng::Pcg32::new(0xb011d, 1);
     let mut worst = (1.0f64, "");
-    for info in models::all() {
+    for &info in models::all() {
         let n = 400;
         let ok = (0..n)
             .filter(|_| {

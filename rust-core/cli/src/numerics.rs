@@ -58,7 +58,7 @@ pub fn run(args: NumericsArgs) -> ExitCode {
         }
     }
     for name in &args.preset {
-        match presets::PRESETS.iter().find(|p| p.name == name) {
+        match presets::PRESETS.iter().find(|p| p.name == name.as_str()) {
             Some(p) => ps.push(p),
             None => {
                 eprintln!("error: unknown preset \"{name}\" (see `lacquer presets`)");

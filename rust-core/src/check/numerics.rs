@@ -476,7 +476,7 @@ pub fn numerics(
     // (row, how to build the material).
     let mut sources: Vec<(usize, Source)> = Vec::new();
     let mut rows: Vec<NumericsRow> = Vec::new();
-    for info in models {
+    for &info in models {
         let row = rows.len();
         rows.push(NumericsRow {
             name: info.name.to_string(),
@@ -505,7 +505,7 @@ pub fn numerics(
             r.example(|| format!("out-of-range parameters accepted: {a}"));
         }
     }
-    for p in presets {
+    for &p in presets {
         let row = rows.len();
         let info = Material::from_json(p.json).ok().map(|m| m.info());
         rows.push(NumericsRow {
@@ -621,10 +621,12 @@ mod tests {
             let a: Vec<f32> = (0..16).flat_map(|_| [wi32.x, wi32.y, wi32.z]).collect();
             let b: Vec<f32> = (0..16).flat_map(|_| [wo32.x, wo32.y, wo32.z]).collect();
             let (mut f, mut pdf) = (vec![7.0f32; 48], vec![7.0f32; 16]);
-            let fv = Dst3::interleaved(&mut f);
-            let pv = Dst1::new(&mut pdf);
-            batch::eval_pdf(&m, &Src3::interleaved(&a), &Src3::interleaved(&b), None, Some(&fv), Some(&pv))
-                .expect("valid views");
+            {
+                let fv = Dst3::interleaved(&mut f);
+                let pv = Dst1::new(&mut pdf);
+                batch::eval_pdf(&m, &Src3::interleaved(&a), &Src3::interleaved(&b), None, Some(&fv), Some(&pv))
+                    .expect("valid views");
+            }
             assert!(f.iter().chain(&pdf).all(|v| *v == 0.0), "{} batch: {f:?} {pdf:?}", info.name);
         }
         // Just above the threshold the models still answer (finite, non-negative).
