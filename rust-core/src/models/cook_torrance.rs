@@ -285,7 +285,9 @@ mod tests {
     /// every distribution and masking, rough or not.
     #[test]
     fn compensated_furnace_is_one() {
-        const KC_TOL: f64 = 1.5e-2;
+        // Measured: worst |albedo − 1| = 1.35e-3 over the 36 cases (40 000 quasi-random samples
+        // each, fixed seed; F of η = 0.01, k = 10 is slightly below one); was 1.5e-2.
+        const KC_TOL: f64 = 3e-3;
         let mut worst = 0.0f64;
         for dist in ["ggx", "beckmann"] {
             for masking in ["smith_height_correlated", "smith_separable", "vgroove"] {

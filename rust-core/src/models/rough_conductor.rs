@@ -375,7 +375,9 @@ mod tests {
     /// roughness, anisotropy, distribution and masking, at every angle.
     #[test]
     fn compensated_furnace_is_one() {
-        const KC_TOL: f64 = 1e-2;
+        // Measured: worst |albedo − 1| = 1.35e-4 over the 64 cases (30 000 quasi-random samples
+        // each, fixed seed); was 1e-2.
+        const KC_TOL: f64 = 5e-4;
         let mut worst = 0.0f64;
         for dist in ["beckmann", "ggx"] {
             for masking in ["smith_separable", "smith_height_correlated"] {

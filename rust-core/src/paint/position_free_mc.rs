@@ -454,7 +454,7 @@ mod tests {
 
     /// The analytic model against the reference where its approximations vanish: a smooth coat
     /// over a Lambertian base (solid paint) and the lossless white stack. The analytic model is
-    /// exact there up to its tables; stated tolerance: 1 % of the value + 4σ of the reference.
+    /// exact there up to its tables; stated tolerance: 0.2 % of the value + 4σ of the reference.
     #[test]
     fn analytic_model_matches_reference_where_it_is_exact() {
         let configs = [
@@ -474,7 +474,9 @@ mod tests {
                 for c in 0..3 {
                     worst_rel = worst_rel.max((a[c] - r.value[c]).abs() / r.value[c]);
                     worst_sigma = worst_sigma.max((a[c] - r.value[c]).abs() / r.std_error[c]);
-                    let tol = 0.01 * r.value[c] + 4.0 * r.std_error[c];
+                    // Measured: worst gap 2.75σ of the reference (2.15 % relative: the noise of
+                    // 4 000 walks), so no bias term is needed beyond the tables' 0.2 %; was 1 % + 4σ.
+                    let tol = 0.002 * r.value[c] + 4.0 * r.std_error[c];
                     assert!(
                         (a[c] - r.value[c]).abs() < tol,
                         "{json} θ {ti}/{to} ch {c}: analytic {} vs reference {} ± {tol}",
