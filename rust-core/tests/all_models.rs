@@ -158,10 +158,11 @@ fn random_parameters_mostly_build() {
 }
 
 proptest! {
-    // Rejected draws are skipped (`prop_assume!`), at most 1 024 over the 2 000 cases
-    // (proptest's default): measured ≈ 27 % of draws are rejected (223 successes before 200
-    // rejects), nearly all from the nine models `random_parameters_mostly_build` lists.
-    #![proptest_config(ProptestConfig { cases: 2000, max_global_rejects: 1024, ..ProptestConfig::default() })]
+    // Rejected draws are skipped (`prop_assume!`), at most 4 000 over the 2 000 cases:
+    // measured 200 rejects per 223 successes (47 %, about 1 800 expected), nearly all from the
+    // nine models `random_parameters_mostly_build` lists; the limit goes down when the
+    // generator respects the cross-parameter rules.
+    #![proptest_config(ProptestConfig { cases: 2000, max_global_rejects: 4000, ..ProptestConfig::default() })]
 
     /// Non-negative, finite, and reciprocal where claimed, for random valid parameters and
     /// directions (grazing included).
