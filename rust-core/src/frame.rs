@@ -66,31 +66,31 @@ pub fn sin_phi<T: Real>(w: Vec3<T>) -> T {
     }
 }
 
-/// `cos θ` at or below which a unit direction counts as at the horizon: the dispatcher
-/// (`Model::eval/pdf/sample`, scalar and SIMD) gives it `f = 0`, `pdf = 0` and no sample.
-///
-/// Why not 0: in f32, products of two or four grazing cosines underflow (cos θ = 1e-12 gives
-/// cos⁴ = 1e-48 → 0), and the microfacet models then returned NaN or ±Inf (found by the
-/// `material_json` fuzz target; at cos θ ≤ 1e-12 for rough_conductor, rough_plastic,
-/// cook_torrance, torrance_sparrow, cook_torrance_1981; Inf for stam and a NaN pdf for
-/// principled at 1e-40). A direction within 1e-8 rad of the horizon carries a `cos θ ≤ 1e-8`
-/// share of anything it would reflect, and grazing angles down to `cos θ = 1e-7` still
-/// evaluate normally. The same bound holds for f64, so both paths agree.
-pub const HORIZON_COS: f64 = 1e-8;
-
 /// True when both directions lie above the surface, `cos θ > HORIZON_COS` (the only case a
 /// one-sided opaque BRDF is non-zero).
 #[inline(always)]
 #[must_use]
 pub fn both_above<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> bool {
-    above(wi) && above(wo)
+    above(wi.z) && above(wo.z)
 }
 
-/// True when `w` lies above the surface: `cos θ > HORIZON_COS`.
+/// Smallest `cos θ` of a direction counted as above the surface: directions closer to the
+/// horizon (`cos θ ≤ 1e-8`, every denormal included) get `f = 0`, `pdf = 0` and no sample, in
+/// the scalar paths and the batch kernels, f32 and f64 alike. Their contribution `f cos θ` is
+/// nil (a direction within 1e-8 rad of the horizon), while the models' `1/cos θ` factors
+/// overflow there and products of grazing cosines underflow in f32 (cos θ = 1e-12 gives
+/// cos⁴ = 1e-48 → 0). Found twice: by the `material_json` fuzz target (NaN/±Inf at
+/// cos θ ≤ 1e-12 in rough_conductor, rough_plastic, cook_torrance, torrance_sparrow,
+/// cook_torrance_1981, stam, principled; docs/reliability.md) and by `lacquer numerics` (NaN and
+/// Inf of nine models at cos θ = 1e-310 in f64 and 1e-40 in f32; docs/numerics.md). Grazing
+/// angles down to cos θ = 1e-7 (the hard-case grid) still evaluate normally.
+pub const HORIZON_COS: f64 = 1e-8;
+
+/// True when `cos θ` is above [`HORIZON_COS`] (false for NaN).
 #[inline(always)]
 #[must_use]
-pub fn above<T: Real>(w: Vec3<T>) -> bool {
-    w.z > T::of(HORIZON_COS)
+pub fn above<T: Real>(cos_theta: T) -> bool {
+    cos_theta > T::of(HORIZON_COS)
 }
 
 /// Mirror reflection of `w` about the normal `n` (both pointing away from the surface).

@@ -373,6 +373,27 @@ impl<T: Real> Microfacet<T> {
         valid.then_some(wi)
     }
 
+    /// Density of the diffuse + specular mixture of the Cook-Torrance-style models: with
+    /// probability `ps` reflection off a visible normal ([`Self::reflection_pdf`]), else the
+    /// cosine lobe.
+    #[inline]
+    #[must_use]
+    pub fn mixed_with_cosine_pdf(&self, ps: T, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        ps * self.reflection_pdf(wi, wo, true) + (T::one() - ps) * crate::sampling::cosine_hemisphere_pdf(wi.z)
+    }
+
+    /// Samples the mixture of [`Self::mixed_with_cosine_pdf`]: `u[0] < ps` picks the visible-
+    /// normal reflection ([`Self::sample_reflection`]), otherwise the cosine lobe.
+    #[inline]
+    #[must_use]
+    pub fn sample_mixed_with_cosine(&self, ps: T, wo: Vec3<T>, u: [T; 3]) -> Option<Vec3<T>> {
+        if u[0] < ps {
+            self.sample_reflection(wo, u[1], u[2], true)
+        } else {
+            Some(crate::sampling::cosine_hemisphere(u[1], u[2]))
+        }
+    }
+
     /// Samples `D(m) cos θm` by inverting its CDF (anisotropic φ as in Walter et al. 2007).
     fn sample_full(&self, u1: T, u2: T) -> Vec3<T> {
         let (ax, ay) = (self.alpha_x, self.alpha_y);

@@ -118,8 +118,51 @@ fn unit_dir(cos_t: f64, phi: f64) -> Vec3<f64> {
     Vec3::new(s * phi.cos(), s * phi.sin(), cos_t)
 }
 
+/// The material of `info` from numbers in [0, 1), or the model's error.
+fn build_from_unit(info: &'static ModelInfo, u: &[f64]) -> Result<Material, String> {
+    let params = Params::parse(info.name, info.params, &params_from_unit(info, u)).map_err(|e| e.to_string())?;
+    Material::from_params(info, params).map_err(|e| e.to_string())
+}
+
+/// Most random parameter sets build, for every model: the property tests below skip
+/// (`prop_assume!`) the sets a model rejects, so a model whose builder always errored would
+/// pass them without a single check. Requires ≥ 90 % of 400 draws per model.
+///
+/// Ignored, and failing: measured (seed 0xb011d) 18 models build 400/400, but coated_paint
+/// 196, cook_torrance 194, cook_torrance_1981 191, lafortune 39, modified_phong 7,
+/// neumann_stretch_phong 3, fast_phong 2, neumann_stretch_blinn_phong 1 and poulin_fournier 1
+/// of 400: `params_from_unit` ignores the cross-parameter rules (`diffuse + specular ≤ 1` and
+/// alike), so before `prop_assume!` the property tests checked those models on almost no
+/// parameter sets while reporting success. Open (issue 16): the generator must respect the
+/// rules; run with `--ignored` to see the rates.
+#[test]
+#[ignore = "fails: 9 models build < 90 % of random parameter sets (see the doc comment); open in issue 16"]
+fn random_parameters_mostly_build() {
+    let mut rng = lacquer::rng::Pcg32::new(0xb011d, 1);
+    let mut worst = (1.0f64, "");
+    for &info in models::all() {
+        let n = 400;
+        let ok = (0..n)
+            .filter(|_| {
+                let u: Vec<f64> = (0..8).map(|_| rng.uniform()).collect();
+                build_from_unit(info, &u).is_ok()
+            })
+            .count();
+        let rate = ok as f64 / n as f64;
+        eprintln!("{}: {ok}/{n} random parameter sets build", info.name);
+        if rate < worst.0 {
+            worst = (rate, info.name);
+        }
+    }
+    assert!(worst.0 >= 0.9, "{} builds only {:.1} % of random parameter sets", worst.1, 100.0 * worst.0);
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(2000))]
+    // Rejected draws are skipped (`prop_assume!`), at most 4 000 over the 2 000 cases:
+    // measured 200 rejects per 223 successes (47 %, about 1 800 expected), nearly all from the
+    // nine models `random_parameters_mostly_build` lists; the limit goes down when the
+    // generator respects the cross-parameter rules.
+    #![proptest_config(ProptestConfig { cases: 2000, max_global_rejects: 4000, ..ProptestConfig::default() })]
 
     /// Non-negative, finite, and reciprocal where claimed, for random valid parameters and
     /// directions (grazing included).
@@ -131,8 +174,9 @@ proptest! {
         co in prop_oneof![0.0f64..1.0, 1e-7f64..1e-3], po in 0.0f64..6.3,
     ) {
         let info = models::all()[model];
-        let Ok(params) = Params::parse(info.name, info.params, &params_from_unit(info, &u)) else { return Ok(()); };
-        let Ok(m) = Material::from_params(info, params) else { return Ok(()); };
+        let built = build_from_unit(info, &u);
+        prop_assume!(built.is_ok());
+        let m = built.expect("assumed");
         let (wi, wo) = (unit_dir(ci, pi), unit_dir(co, po));
         let f = m.eval(wi, wo);
         let g = m.eval(wo, wi);
@@ -159,8 +203,9 @@ proptest! {
         s in proptest::array::uniform3(0.0f64..1.0),
     ) {
         let info = models::all()[model];
-        let Ok(params) = Params::parse(info.name, info.params, &params_from_unit(info, &u)) else { return Ok(()); };
-        let Ok(m) = Material::from_params(info, params) else { return Ok(()); };
+        let built = build_from_unit(info, &u);
+        prop_assume!(built.is_ok());
+        let m = built.expect("assumed");
         let wo = unit_dir(co, po);
         if let Some(smp) = m.sample(wo, s) {
             prop_assert!(smp.wi.is_finite());

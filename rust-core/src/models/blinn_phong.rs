@@ -173,16 +173,7 @@ impl Bxdf for BlinnPhong {
         l.diffuse_value() + l.specular_power(wi, wo) * norm
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.lobe.pdf(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.lobe.sample_direction(wo, u)?;
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    lobe_sampling!(lobe);
 }
 
 /// Golden values shared with the stretched variant's tests.

@@ -285,6 +285,10 @@ mod tests {
     /// every distribution and masking, rough or not.
     #[test]
     fn compensated_furnace_is_one() {
+        // Measured: worst |albedo − 1| = 1.35e-3 over the 36 cases (40 000 quasi-random samples
+        // each, fixed seed; F of η = 0.01, k = 10 is slightly below one); was 1.5e-2.
+        const KC_TOL: f64 = 3e-3;
+        let mut worst = 0.0f64;
         for dist in ["ggx", "beckmann"] {
             for masking in ["smith_height_correlated", "smith_separable", "vgroove"] {
                 for &a in &[0.2, 1.0] {
@@ -295,11 +299,13 @@ mod tests {
                     for &c in &[1.0, 0.5, 0.1] {
                         let wo = spherical_direction((1.0f64 - c * c).sqrt(), c, 0.0);
                         let (alb, _) = albedo(&m, wo, 40_000, &mut Pcg32::new(4, 4));
-                        assert!((alb[0] - 1.0).abs() < 1.5e-2, "{dist} {masking} α={a} μ={c}: {}", alb[0]);
+                        worst = worst.max((alb[0] - 1.0).abs());
+                        assert!((alb[0] - 1.0).abs() < KC_TOL, "{dist} {masking} α={a} μ={c}: {}", alb[0]);
                     }
                 }
             }
         }
+        eprintln!("cook_torrance Kulla-Conty furnace: worst |albedo − 1| = {worst:.2e}");
     }
 
     #[test]

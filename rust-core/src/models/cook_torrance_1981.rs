@@ -42,7 +42,6 @@ use crate::microfacet::{g_vgroove, DistributionKind, Microfacet};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
-use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
 const PARAMS: &[ParamSpec] = &[
     ParamSpec::scalar("kd", 0.5, 0.0, 1.0, "", "diffuse weight d (kd + ks ≤ 1)"),
@@ -143,20 +142,12 @@ impl Bxdf for CookTorrance1981 {
 
     #[inline]
     fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let ps = self.specular_probability(wo);
-        ps * self.beckmann::<T>().reflection_pdf(wi, wo, true)
-            + (T::one() - ps) * cosine_hemisphere_pdf(wi.z)
+        self.beckmann::<T>().mixed_with_cosine_pdf(self.specular_probability(wo), wi, wo)
     }
 
     #[inline]
     fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let ps = self.specular_probability(wo);
-        let wi = if u[0] < ps {
-            self.beckmann::<T>()
-                .sample_reflection(wo, u[1], u[2], true)?
-        } else {
-            cosine_hemisphere(u[1], u[2])
-        };
+        let wi = self.beckmann::<T>().sample_mixed_with_cosine(self.specular_probability(wo), wo, u)?;
         BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
     }
 }
@@ -164,6 +155,7 @@ impl Bxdf for CookTorrance1981 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::cosine_hemisphere;
     use crate::check::{check_model, CheckConfig};
     use crate::frame::spherical_direction;
     use crate::rng::Pcg32;

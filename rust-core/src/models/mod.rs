@@ -9,6 +9,42 @@ use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::real::Real;
 
+/// The `pdf` and `sample` of a [`Bxdf`] whose sampler is a shared lobe type (`self.$lobe`
+/// with `pdf(wi, wo)` and `sample_direction(wo, u)`: the Ward family's `WardLobes`, the Phong
+/// family's `MirrorLobe` and `HalfLobe`): the density is the lobe's, the sample's value the
+/// model's own `eval` at the sampled direction. Each model then writes only its `eval`.
+macro_rules! lobe_sampling {
+    ($lobe:ident) => {
+        #[inline]
+        fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+            self.$lobe.pdf(wi, wo)
+        }
+
+        #[inline]
+        fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+            let wi = self.$lobe.sample_direction(wo, u)?;
+            BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        }
+    };
+}
+
+/// The `pdf` and `sample` of a [`Bxdf`] sampled from the cosine lobe (the Oren-Nayar models:
+/// perturbed Lambertian lobes); the sample's value is the model's own `eval`.
+macro_rules! cosine_sampling {
+    () => {
+        #[inline]
+        fn pdf<T: Real>(&self, wi: Vec3<T>, _wo: Vec3<T>) -> T {
+            cosine_hemisphere_pdf(wi.z)
+        }
+
+        #[inline]
+        fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+            let wi = cosine_hemisphere(u[1], u[2]);
+            BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        }
+    };
+}
+
 macro_rules! models {
     ($($variant:ident($module:ident :: $ty:ident)),* $(,)?) => {
         $(pub mod $module;)*
@@ -126,7 +162,7 @@ impl Model {
     #[inline]
     #[must_use]
     pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        if !above(wo) {
+        if !above(wo.z) {
             return None;
         }
         Self::valid_sample(self.sample_unchecked(wo, u)?)
@@ -146,7 +182,7 @@ impl Model {
     #[inline]
     #[must_use]
     pub fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
-        if !above(wo) {
+        if !above(wo.z) {
             return None;
         }
         Self::valid_sample(self.sample_at_unchecked(wo, u, at)?)
@@ -155,7 +191,7 @@ impl Model {
     #[inline]
     fn valid_sample<T: Real>(s: BsdfSample<T>) -> Option<BsdfSample<T>> {
         let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
-        (valid && (s.delta || above(s.wi))).then_some(s)
+        (valid && (s.delta || above(s.wi.z))).then_some(s)
     }
 }
 

@@ -66,16 +66,7 @@ impl Bxdf for ModifiedPhong {
         self.lobe.diffuse_value() + self.lobe.normalised_lobe(wi, wo)
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.lobe.pdf(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.lobe.sample_direction(wo, u)?;
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    lobe_sampling!(lobe);
 }
 
 #[cfg(test)]

@@ -83,16 +83,7 @@ impl Bxdf for NeumannStretchPhong {
         l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(wo.z).max(cos_floor())
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.lobe.pdf(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.lobe.sample_direction(wo, u)?;
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    lobe_sampling!(lobe);
 }
 
 #[cfg(test)]

@@ -99,16 +99,7 @@ impl Bxdf for OrenNayarQualitative {
         Rgb::from_array(self.albedo) * (self.factor(wi, wo) * T::inv_pi())
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, _wo: Vec3<T>) -> T {
-        cosine_hemisphere_pdf(wi.z)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = cosine_hemisphere(u[1], u[2]);
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    cosine_sampling!();
 }
 
 #[cfg(test)]

@@ -375,6 +375,10 @@ mod tests {
     /// roughness, anisotropy, distribution and masking, at every angle.
     #[test]
     fn compensated_furnace_is_one() {
+        // Measured: worst |albedo − 1| = 1.35e-4 over the 64 cases (30 000 quasi-random samples
+        // each, fixed seed); was 1e-2.
+        const KC_TOL: f64 = 5e-4;
+        let mut worst = 0.0f64;
         for dist in ["beckmann", "ggx"] {
             for masking in ["smith_separable", "smith_height_correlated"] {
                 for (au, av) in [(0.05, 0.05), (0.5, 0.5), (1.0, 1.0), (0.1, 0.8)] {
@@ -385,11 +389,13 @@ mod tests {
                     for &c in &[1.0, 0.5, 0.2, 0.05] {
                         let wo = spherical_direction((1.0f64 - c * c).sqrt(), c, 0.6);
                         let (a, _) = albedo(&m, wo, 30_000, &mut Pcg32::new(5, 1));
-                        assert!((a[0] - 1.0).abs() < 1e-2, "{dist} {masking} ({au},{av}) μ={c}: {}", a[0]);
+                        worst = worst.max((a[0] - 1.0).abs());
+                        assert!((a[0] - 1.0).abs() < KC_TOL, "{dist} {masking} ({au},{av}) μ={c}: {}", a[0]);
                     }
                 }
             }
         }
+        eprintln!("rough_conductor Kulla-Conty furnace: worst |albedo − 1| = {worst:.2e}");
     }
 
     #[test]

@@ -76,16 +76,7 @@ impl Bxdf for WardNeumann {
         l.diffuse_value() + l.specular_albedo() * spec
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.lobes.pdf(wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.lobes.sample_direction(wo, u)?;
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    lobe_sampling!(lobes);
 }
 
 #[cfg(test)]

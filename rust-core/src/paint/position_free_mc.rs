@@ -454,13 +454,14 @@ mod tests {
 
     /// The analytic model against the reference where its approximations vanish: a smooth coat
     /// over a Lambertian base (solid paint) and the lossless white stack. The analytic model is
-    /// exact there up to its tables; stated tolerance: 1 % of the value + 4σ of the reference.
+    /// exact there up to its tables; stated tolerance: 0.2 % of the value + 4σ of the reference.
     #[test]
     fn analytic_model_matches_reference_where_it_is_exact() {
         let configs = [
             r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 0}"#,
             r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 0, "base_color": 1.0}"#,
         ];
+        let (mut worst_rel, mut worst_sigma) = (0.0f64, 0.0f64);
         for json in configs {
             let p = paint(json);
             let mc = PositionFreeMc::new(&p);
@@ -471,7 +472,11 @@ mod tests {
                 let r = mc.eval(wi, wo, 4_000, k as u64);
                 let a = p.eval(wi, wo);
                 for c in 0..3 {
-                    let tol = 0.01 * r.value[c] + 4.0 * r.std_error[c];
+                    worst_rel = worst_rel.max((a[c] - r.value[c]).abs() / r.value[c]);
+                    worst_sigma = worst_sigma.max((a[c] - r.value[c]).abs() / r.std_error[c]);
+                    // Measured: worst gap 2.75σ of the reference (2.15 % relative: the noise of
+                    // 4 000 walks), so no bias term is needed beyond the tables' 0.2 %; was 1 % + 4σ.
+                    let tol = 0.002 * r.value[c] + 4.0 * r.std_error[c];
                     assert!(
                         (a[c] - r.value[c]).abs() < tol,
                         "{json} θ {ti}/{to} ch {c}: analytic {} vs reference {} ± {tol}",
@@ -481,5 +486,6 @@ mod tests {
                 }
             }
         }
+        eprintln!("analytic vs position-free MC: worst relative gap {worst_rel:.2e}, worst gap / σ {worst_sigma:.2}");
     }
 }
