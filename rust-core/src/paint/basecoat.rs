@@ -12,7 +12,7 @@ use super::pick3;
 use crate::bxdf::BsdfSample;
 use crate::frame::half_vector_masked;
 use crate::fresnel;
-use crate::lanes::{self, keep, Lanes};
+use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
@@ -175,13 +175,18 @@ impl Basecoat {
     #[must_use]
     pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u: [T; 3], active: T::Mask) -> (Vec3<T>, T::Mask) {
         let pick = pick3(self.selection.map(T::c), u[0]);
-        let mut wi = cosine_hemisphere(u[1], u[2]);
-        if let Some(m) = &self.metal {
-            wi = Vec3::select(pick.lobe[1], m.sample_direction(wo, u[1], u[2]), wi);
+        // Each lobe's sampler runs only when an active lane chose it (one lane: only the
+        // chosen one, so the scalar paths pay for one sampler, not three).
+        let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];
+        let mut wi = Vec3::from_f64(0.0, 0.0, 1.0);
+        if pigment.any() {
+            wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
-        if let Some(f) = &self.flakes {
-            let flake = pick.lobe[2];
-            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], active & flake), wi);
+        if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
+            wi = Vec3::select(metal, m.sample_direction(wo, u[1], u[2]), wi);
+        }
+        if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
+            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], flake), wi);
         }
         (wi, pick.valid)
     }
