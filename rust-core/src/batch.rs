@@ -16,7 +16,7 @@
 //!   outputs, counted in [`BatchReport`]). Inactive elements (`active[i] == 0`) get zero outputs
 //!   and are not read for validation.
 
-use crate::bxdf::LaneSample;
+use crate::bxdf::{LaneSample, SurfacePoint};
 use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
@@ -286,6 +286,56 @@ impl<'a, E> Dst1<'a, E> {
     }
 }
 
+impl<E: Copy> Src3<'_, E> {
+    /// Element `i`.
+    ///
+    /// # Safety
+    /// `i < n`.
+    #[inline(always)]
+    unsafe fn get(&self, i: usize) -> [E; 3] {
+        // SAFETY: the caller guarantees i < n; the constructor that every element is readable.
+        unsafe { self.p.map(|p| *p.add(i * self.stride)) }
+    }
+}
+
+impl<E: Copy> Dst3<'_, E> {
+    /// Element `i` (as last written).
+    ///
+    /// # Safety
+    /// `i < n`, and no other thread writes element `i` meanwhile.
+    #[inline(always)]
+    unsafe fn get(&self, i: usize) -> [E; 3] {
+        // SAFETY: as above.
+        unsafe { self.p.map(|p| *p.add(i * self.stride)) }
+    }
+    /// Writes element `i`.
+    ///
+    /// # Safety
+    /// As [`Dst3::get`].
+    #[inline(always)]
+    unsafe fn set(&self, i: usize, v: [E; 3]) {
+        for (p, v) in self.p.iter().zip(v) {
+            // SAFETY: as above.
+            unsafe { *p.add(i * self.stride) = v };
+        }
+    }
+}
+
+impl<E: Copy> Dst1<'_, E> {
+    /// Element `i` (as last written). Safety: as [`Dst3::get`].
+    #[inline(always)]
+    unsafe fn get(&self, i: usize) -> E {
+        // SAFETY: as Dst3::get.
+        unsafe { *self.p.add(i * self.stride) }
+    }
+    /// Writes element `i`. Safety: as [`Dst3::get`].
+    #[inline(always)]
+    unsafe fn set(&self, i: usize, v: E) {
+        // SAFETY: as Dst3::get.
+        unsafe { *self.p.add(i * self.stride) = v };
+    }
+}
+
 /// What a batch call found wrong with its inputs (active elements only).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BatchReport {
@@ -432,6 +482,7 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
 const UP: [f64; 3] = [0.0, 0.0, 1.0];
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     model: &K,
     range: (usize, usize),
@@ -440,6 +491,7 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     active: Option<&[u8]>,
     f: Option<&Dst3<L::Elem>>,
     pdf: Option<&Dst1<L::Elem>>,
+    scale: Option<Scales<L::Elem>>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
     let mut start = range.0;
@@ -455,7 +507,20 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
         }
         let keep = on & ok;
         if let Some(f) = f {
-            let v = model.eval(a, o);
+            let v = match scale {
+                Some(sc) => {
+                    let one = <L::Elem as Real>::of(1.0);
+                    // SAFETY: the scales hold the elements base..base + len ⊇ start..start + width.
+                    let (m, p) = unsafe {
+                        (
+                            load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
+                            load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
+                        )
+                    };
+                    model.eval_scaled(a, o, [m, p])
+                }
+                None => model.eval(a, o),
+            };
             let v = Rgb::select(keep, v, Rgb::zero());
             unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
         }
@@ -575,6 +640,7 @@ enum Args<'v, 'a> {
         active: Option<&'a [u8]>,
         f: Option<&'v Dst3<'a, f32>>,
         pdf: Option<&'v Dst1<'a, f32>>,
+        scale: Option<Scales<'v, f32>>,
     },
     Sample {
         wo: &'v Src3<'a, f32>,
@@ -593,7 +659,9 @@ impl Args<'_, '_> {
     #[inline(always)]
     fn run<L: Lanes<Elem = f32>, K: LaneKernel>(self, kernel: &K, range: (usize, usize)) -> BatchReport {
         match self {
-            Args::EvalPdf { wi, wo, active, f, pdf } => eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf),
+            Args::EvalPdf { wi, wo, active, f, pdf, scale } => {
+                eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale)
+            }
             Args::Sample { wo, u, active, out, flags } => {
                 sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags)
             }
@@ -663,7 +731,7 @@ pub fn eval_pdf(
     check_views(n, &[("wo", wo.n)])?;
     check_views(n, &[("active", active.map_or(n, <[u8]>::len))])?;
     check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
-    let args = Args::EvalPdf { wi, wo, active, f, pdf };
+    let args = Args::EvalPdf { wi, wo, active, f, pdf, scale: None };
     Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
 }
 
@@ -684,6 +752,172 @@ pub fn sample(
     let out: &SampleOut<f32> = out;
     let args = Args::Sample { wo, u, active, out, flags };
     Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
+}
+
+/// Per-element multipliers of the spatially varying lobes for the elements
+/// `base..base + metal.len()` (see [`LaneKernel::eval_scaled`]).
+#[derive(Clone, Copy)]
+struct Scales<'s, E> {
+    metal: &'s [E],
+    pearl: &'s [E],
+    base: usize,
+}
+
+/// A raw pointer that parallel work items use for disjoint elements.
+#[derive(Clone, Copy)]
+struct Shared<T>(*mut T);
+// SAFETY: every work item of one call touches only the elements of its own range.
+unsafe impl<T> Send for Shared<T> {}
+unsafe impl<T> Sync for Shared<T> {}
+
+impl<T> Shared<T> {
+    /// The pointer (a method, so closures capture the `Sync` wrapper, not the field).
+    #[inline(always)]
+    fn ptr(&self) -> *mut T {
+        self.0
+    }
+}
+
+/// A direction as `Material` sanitises it: `None` for non-finite or zero-length input,
+/// otherwise the unit vector (unchanged when already unit to rounding).
+fn unit(v: [f32; 3]) -> Option<Vec3<f32>> {
+    let v = Vec3::new(v[0], v[1], v[2]);
+    let l2 = v.length_squared();
+    if !(l2 > 0.0 && l2.is_finite()) {
+        return None;
+    }
+    Some(if (l2 - 1.0).abs() > 64.0 * f32::EPSILON { v / l2.sqrt() } else { v })
+}
+
+/// The sparkle multipliers of elements `s..e` (`[1, 1]` for inactive or invalid elements).
+fn scales_of(
+    model: &Model,
+    wi: impl Fn(usize) -> [f32; 3],
+    wo: &Src3<f32>,
+    at: &[SurfacePoint],
+    use_element: impl Fn(usize) -> bool,
+    (s, e): (usize, usize),
+) -> (Vec<f32>, Vec<f32>) {
+    let (mut metal, mut pearl) = (vec![1.0f32; e - s], vec![1.0f32; e - s]);
+    for i in s..e {
+        if !use_element(i) {
+            continue;
+        }
+        // SAFETY: i < n for every view (checked by the public functions).
+        let (a, o) = (unit(wi(i)), unit(unsafe { wo.get(i) }));
+        if let (Some(a), Some(o)) = (a, o) {
+            let [m, p] = model.sparkle_scales(a, o, &at[i]);
+            (metal[i - s], pearl[i - s]) = (m as f32, p as f32);
+        }
+    }
+    (metal, pearl)
+}
+
+/// [`eval_pdf`] at surface points: `f` is `Material::eval_at(wi, wo, at[i])` (sparkle: the
+/// flake lobes scaled by the flake counts in each element's footprint), computed by the same
+/// SIMD kernels with per-element multipliers; the multipliers themselves (the footprint's
+/// flake counts) are scalar work. A non-finite `at[i]` gives the mean BRDF, as
+/// `Material::eval_at` does. Materials that do not vary in space ignore `at`.
+pub fn eval_pdf_at(
+    m: &Material,
+    wi: &Src3<f32>,
+    wo: &Src3<f32>,
+    at: &[SurfacePoint],
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f32>>,
+    pdf: Option<&Dst1<f32>>,
+) -> Result<BatchReport, LayoutError> {
+    if !m.spatially_varying() || f.is_none() {
+        return eval_pdf(m, wi, wo, active, f, pdf);
+    }
+    let n = wi.n;
+    check_views(n, &[("wo", wo.n), ("at", at.len()), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
+    Ok(run(n, |s, e| {
+        let on = |i: usize| active.is_none_or(|a| a[i] != 0);
+        // SAFETY: i < n (checked above).
+        let (metal, pearl) = scales_of(m.model(), |i| unsafe { wi.get(i) }, wo, at, on, (s, e));
+        let scale = Some(Scales { metal: &metal, pearl: &pearl, base: s });
+        Args::EvalPdf { wi, wo, active, f, pdf, scale }.dispatch(m.model(), (s, e))
+    }))
+}
+
+/// [`sample`] at surface points: the directions and densities of [`sample`], the weights of
+/// `Material::sample_at` (`eval_at(wi, wo, at[i]) cos θi / pdf`: sparkle). A non-finite
+/// `at[i]` gives the mean BRDF's weight. Materials that do not vary in space ignore `at`.
+pub fn sample_at(
+    m: &Material,
+    wo: &Src3<f32>,
+    u: &Src3<f32>,
+    at: &[SurfacePoint],
+    active: Option<&[u8]>,
+    out: &mut SampleOut<f32>,
+) -> Result<BatchReport, LayoutError> {
+    if !m.spatially_varying() || wo.n == 0 {
+        return sample(m, wo, u, active, out);
+    }
+    let n = wo.n;
+    check_views(n, &[("u", u.n), ("at", at.len()), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("wi", out.wi.n), ("weight", out.weight.n), ("pdf", out.pdf.n)])?;
+    check_views(n, &[("flags", out.flags.as_ref().map_or(n, |f| f.len()))])?;
+    let mut own_flags = Vec::new();
+    let flags = Shared(match out.flags.as_mut() {
+        Some(f) => f.as_mut_ptr(),
+        None => {
+            own_flags.resize(n, 0u32);
+            own_flags.as_mut_ptr()
+        }
+    });
+    let out: &SampleOut<f32> = out;
+    // Pass 1: the mean BRDF's samples, then the multipliers at the sampled directions and
+    // which elements need their weight recomputed.
+    let (mut metal, mut pearl, mut rescale) = (vec![1.0f32; n], vec![1.0f32; n], vec![0u8; n]);
+    let (metal_w, pearl_w, rescale_w) =
+        (Shared(metal.as_mut_ptr()), Shared(pearl.as_mut_ptr()), Shared(rescale.as_mut_ptr()));
+    let report = run(n, |s, e| {
+        let report = Args::Sample { wo, u, active, out, flags: Some(flags.ptr()) }.dispatch(m.model(), (s, e));
+        // SAFETY (this closure): the work item owns elements s..e of every buffer; i < n.
+        let good = |i: usize| active.is_none_or(|a| a[i] != 0) && unsafe { *flags.ptr().add(i) } == 0;
+        let (ms, ps) = scales_of(m.model(), |i| unsafe { out.wi.get(i) }, wo, at, good, (s, e));
+        for i in s..e {
+            let differs = ms[i - s] != 1.0 || ps[i - s] != 1.0;
+            unsafe {
+                *metal_w.ptr().add(i) = ms[i - s];
+                *pearl_w.ptr().add(i) = ps[i - s];
+                *rescale_w.ptr().add(i) = u8::from(good(i) && differs);
+            }
+        }
+        report
+    });
+    // Pass 2: the flake-scaled BRDF at the sampled directions, and the weights from it.
+    let mut f_buf = vec![0.0f32; 3 * n];
+    let f_dst = Dst3::interleaved(&mut f_buf);
+    // SAFETY: out.wi holds n elements, written in pass 1; pass 2 reads an element before the
+    // same work item may overwrite it.
+    let wi_src = unsafe { Src3::from_raw(out.wi.p[0], out.wi.p[1], out.wi.p[2], out.wi.stride, n) };
+    let scale = Some(Scales { metal: &metal, pearl: &pearl, base: 0 });
+    let rescale = &rescale;
+    run(n, |s, e| {
+        Args::EvalPdf { wi: &wi_src, wo, active: Some(rescale), f: Some(&f_dst), pdf: None, scale }
+            .dispatch(m.model(), (s, e));
+        for i in (s..e).filter(|&i| rescale[i] != 0) {
+            // SAFETY: i < n, element of this work item.
+            unsafe {
+                let (fv, wi, pdf) = (f_dst.get(i), out.wi.get(i), out.pdf.get(i));
+                let w = fv.map(|c| c * (wi[2] / pdf));
+                if w.iter().all(|x| x.is_finite()) {
+                    out.weight.set(i, w);
+                } else {
+                    out.wi.set(i, [0.0; 3]);
+                    out.weight.set(i, [0.0; 3]);
+                    out.pdf.set(i, 0.0);
+                    *flags.ptr().add(i) = SAMPLE_FAILED;
+                }
+            }
+        }
+        BatchReport::default()
+    });
+    Ok(report)
 }
 
 /// [`eval_pdf`] in f64 (the reference path, one element at a time, same layouts and rules).
@@ -709,7 +943,7 @@ pub fn eval_pdf_f64(
     impl KernelVisitor for F64<'_, '_> {
         type Output = BatchReport;
         fn visit<K: LaneKernel>(self, k: &K) -> BatchReport {
-            eval_pdf_kernel::<f64, K>(k, self.range, self.wi, self.wo, self.active, self.f, self.pdf)
+            eval_pdf_kernel::<f64, K>(k, self.range, self.wi, self.wo, self.active, self.f, self.pdf, None)
         }
     }
     Ok(run(n, |s, e| m.model().visit_kernel(F64 { wi, wo, active, f, pdf, range: (s, e) })))

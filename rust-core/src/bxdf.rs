@@ -87,6 +87,14 @@ pub trait LaneBxdf {
     fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L;
     /// [`Bxdf::sample`] per lane.
     fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L>;
+    /// [`LaneBxdf::eval_lanes`] with per-lane multipliers of the spatially varying lobes,
+    /// `scale = [metallic flakes, pearlescent flakes]` (the sparkle's `n / (N p)`, see
+    /// `Model::sparkle_scales`); models without such lobes ignore them.
+    #[inline(always)]
+    fn eval_scaled_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2]) -> Rgb<L> {
+        let _ = scale;
+        self.eval_lanes(wi, wo)
+    }
 }
 
 /// Implements [`Bxdf`] for a [`LaneBxdf`] model by calling its lane methods with a one-lane

@@ -11,8 +11,9 @@
 use crate::camera::CameraRay;
 use crate::geom::{offset_origin, Frame, Ray, V3};
 use crate::scene::{Hit, Scene};
+use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
 use lacquer::rng::Pcg32;
-use lacquer::{Rgb, SurfacePoint};
+use lacquer::{BsdfSample, Material, Rgb, SurfacePoint};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -214,90 +215,144 @@ fn footprint(cr: &CameraRay, hit: &Hit) -> Option<SurfacePoint> {
     sp.is_finite().then_some(sp)
 }
 
-/// Traces one camera path.
-fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler) -> PathValue {
-    let mut out = PathValue { radiance: C::zero(), alpha: 0.0, albedo: C::zero(), normal: V3::zero() };
-    let mut ray = cr.ray;
-    let mut beta = C::splat(1.0);
-    // The previous vertex's sampling: camera rays and delta lobes count emission in full.
-    let mut prev_delta = true;
-    let mut prev_pdf = 0.0f32;
-    let mut prev_p = ray.o;
-    let mut depth = 0u32;
-    // Distance travelled since the last scattering vertex through emitters that are not
-    // surfaces (for the solid-angle density of what lies behind them), and how many.
-    let mut passed = 0.0f32;
-    let mut passes = 0u32;
+/// A camera path in flight: what the one-path loop kept in local variables.
+struct Path {
+    /// The camera ray (its differentials give the first hit's footprint).
+    cr: CameraRay,
+    ray: Ray,
+    beta: C,
+    /// The previous vertex's sampling: camera rays and delta lobes count emission in full.
+    prev_delta: bool,
+    prev_pdf: f32,
+    prev_p: V3,
+    depth: u32,
+    /// Distance travelled since the last scattering vertex through emitters that are not
+    /// surfaces (for the solid-angle density of what lies behind them), and how many.
+    passed: f32,
+    passes: u32,
+    value: PathValue,
+}
+
+impl Path {
+    fn new(cr: CameraRay) -> Self {
+        Self {
+            ray: cr.ray,
+            cr,
+            beta: C::splat(1.0),
+            prev_delta: true,
+            prev_pdf: 0.0,
+            prev_p: cr.ray.o,
+            depth: 0,
+            passed: 0.0,
+            passes: 0,
+            value: PathValue { radiance: C::zero(), alpha: 0.0, albedo: C::zero(), normal: V3::zero() },
+        }
+    }
+
+    /// Adds emission seen along the path, MIS-weighted against the light sampling of the
+    /// previous vertex.
+    fn add_emission(&mut self, scene: &Scene, li: u32, le: C, dist: f32) {
+        let w = if self.prev_delta {
+            1.0
+        } else {
+            let pl =
+                scene.light_probability(li as usize) * scene.lights[li as usize].pdf(self.prev_p, self.ray.d, dist);
+            power_heuristic(self.prev_pdf, pl)
+        };
+        self.value.radiance += self.beta * le * w;
+    }
+}
+
+/// The light sample of a vertex's next-event estimation, where it can contribute.
+struct LightVisit {
+    /// Toward the light, world and local.
+    wi_world: V3,
+    wi: V3,
+    li: C,
+    /// Light selection probability × the light's density.
+    pl: f32,
+    delta: bool,
+    dist: f32,
+}
+
+/// A path vertex waiting for its material, with the random numbers its shading uses (drawn
+/// in the order the one-path loop drew them, so every pixel's stream is consumed alike).
+struct Vertex {
+    path: u32,
+    material: u32,
+    frame: Frame,
+    ng: V3,
+    p: V3,
+    wo: V3,
+    at: Option<SurfacePoint>,
+    light: Option<LightVisit>,
+    u: [f32; 3],
+}
+
+/// What the material returned for a vertex.
+#[derive(Clone, Copy)]
+struct Shaded {
+    /// `f(wi_light, wo)` and the material's density there (next-event estimation).
+    f_light: C,
+    pdf_light: f32,
+    sample: Option<BsdfSample<f32>>,
+}
+
+impl Default for Shaded {
+    fn default() -> Self {
+        Self { f_light: C::zero(), pdf_light: 0.0, sample: None }
+    }
+}
+
+/// Moves a path to its next vertex that needs the material (`None`: the path ended),
+/// collecting emission on the way.
+fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampler) -> Option<Vertex> {
     loop {
-        let Some(hit) = scene.intersect(&ray) else {
-            if depth == 0 && set.transparent {
-                break;
-            }
-            for &li in scene.infinite_lights() {
-                let light = &scene.lights[li as usize];
-                let le = light.escaped(ray.d);
-                if le.is_black() {
-                    continue;
+        let Some(hit) = scene.intersect(&path.ray) else {
+            if !(path.depth == 0 && set.transparent) {
+                for &li in scene.infinite_lights() {
+                    let le = scene.lights[li as usize].escaped(path.ray.d);
+                    if !le.is_black() {
+                        path.add_emission(scene, li, le, f32::INFINITY);
+                    }
                 }
-                let w = if prev_delta {
-                    1.0
-                } else {
-                    let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, f32::INFINITY);
-                    power_heuristic(prev_pdf, pl)
-                };
-                out.radiance += beta * le * w;
             }
-            break;
+            return None;
         };
         if hit.pass_through {
             // An emitter that is not a surface: camera rays do not see it; other rays collect
             // its emission and go on behind it.
-            if let (Some(li), true) = (hit.light, depth > 0) {
-                let light = &scene.lights[li as usize];
-                let le = light.emitted(hit.surf.ng, ray.d);
+            if let (Some(li), true) = (hit.light, path.depth > 0) {
+                let le = scene.lights[li as usize].emitted(hit.surf.ng, path.ray.d);
                 if !le.is_black() {
-                    let w = if prev_delta {
-                        1.0
-                    } else {
-                        let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, passed + hit.t);
-                        power_heuristic(prev_pdf, pl)
-                    };
-                    out.radiance += beta * le * w;
+                    path.add_emission(scene, li, le, path.passed + hit.t);
                 }
             }
-            passes += 1;
-            if passes > 64 {
-                break;
+            path.passes += 1;
+            if path.passes > 64 {
+                return None;
             }
-            passed += hit.t;
-            ray = Ray::new(offset_origin(hit.surf.p, hit.surf.ng, ray.d), ray.d);
+            path.passed += hit.t;
+            path.ray = Ray::new(offset_origin(hit.surf.p, hit.surf.ng, path.ray.d), path.ray.d);
             continue;
         }
-        if depth == 0 {
-            out.alpha = 1.0;
+        if path.depth == 0 {
+            path.value.alpha = 1.0;
         }
         // Emission of area lights.
         if let Some(li) = hit.light {
-            let light = &scene.lights[li as usize];
-            let le = light.emitted(hit.surf.ng, ray.d);
+            let le = scene.lights[li as usize].emitted(hit.surf.ng, path.ray.d);
             if !le.is_black() {
-                let w = if prev_delta {
-                    1.0
-                } else {
-                    let pl = scene.light_probability(li as usize) * light.pdf(prev_p, ray.d, passed + hit.t);
-                    power_heuristic(prev_pdf, pl)
-                };
-                out.radiance += beta * le * w;
+                path.add_emission(scene, li, le, path.passed + hit.t);
             }
         }
-        if depth >= set.max_depth {
-            break;
+        if path.depth >= set.max_depth {
+            return None;
         }
-        let Some(mi) = hit.material else { break };
-        let mat = &scene.materials[mi as usize];
+        let material = hit.material?;
 
         // Two-sided surfaces: turn the normals toward the viewer.
-        let wo_world = -ray.d;
+        let wo_world = -path.ray.d;
         let (mut ng, mut ns) = (hit.surf.ng, hit.surf.ns);
         if ng.dot(wo_world) < 0.0 {
             ng = -ng;
@@ -307,112 +362,278 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
             ns = ng;
         }
         let frame = Frame::from_normal_tangent(ns, hit.surf.dpdu);
-        let wo = frame.to_local(wo_world);
-        let at = if depth == 0 && set.footprints { footprint(cr, &hit) } else { None };
-        if depth == 0 && set.aovs {
-            out.normal = ns;
+        let at = if path.depth == 0 && set.footprints { footprint(&path.cr, &hit) } else { None };
+        if path.depth == 0 && set.aovs {
+            path.value.normal = ns;
         }
         let p = hit.surf.p;
 
         // Next-event estimation: one light, chosen by power.
         let u_pick = rng.next();
         let u_light = rng.next2();
-        if let Some((li, p_pick)) = scene.pick_light(u_pick) {
-            let light = &scene.lights[li];
-            if let Some(ls) = light.sample(p, u_light) {
-                if ls.wi.dot(ng) > 0.0 && ls.pdf > 0.0 && !ls.li.is_black() {
-                    let wi = frame.to_local(ls.wi);
-                    let f = match &at {
-                        Some(at) => mat.eval_at(wi, wo, at),
-                        None => mat.eval(wi, wo),
-                    };
-                    if wi.z > 0.0 && !f.is_black() {
-                        let o = offset_origin(p, ng, ls.wi);
-                        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-3) } else { f32::INFINITY };
-                        if !scene.occluded(&Ray { o, d: ls.wi, tmax }) {
-                            let pl = p_pick * ls.pdf;
-                            let w = if ls.delta { 1.0 } else { power_heuristic(pl, mat.pdf(wi, wo)) };
-                            out.radiance += beta * f * ls.li * (wi.z * w / pl);
-                        }
-                    }
-                }
-            }
-        }
-
-        // Continue the path by sampling the material.
+        let light = scene.pick_light(u_pick).and_then(|(li, p_pick)| {
+            let ls = scene.lights[li].sample(p, u_light)?;
+            (ls.wi.dot(ng) > 0.0 && ls.pdf > 0.0 && !ls.li.is_black()).then(|| LightVisit {
+                wi_world: ls.wi,
+                wi: frame.to_local(ls.wi),
+                li: ls.li,
+                pl: p_pick * ls.pdf,
+                delta: ls.delta,
+                dist: ls.dist,
+            })
+        });
         let u = rng.next3();
-        let s = match &at {
-            Some(at) => mat.sample_at(wo, u, at),
-            None => mat.sample(wo, u),
-        };
-        let Some(s) = s else { break };
-        if depth == 0 && set.aovs {
-            out.albedo = s.weight;
-        }
-        let wi_world = frame.to_world(s.wi);
-        if wi_world.dot(ng) <= 0.0 {
-            break;
-        }
-        beta = beta * s.weight;
-        prev_delta = s.delta;
-        prev_pdf = s.pdf;
-        prev_p = p;
-        ray = Ray::new(offset_origin(p, ng, wi_world), wi_world);
-        passed = 0.0;
-        depth += 1;
-        if depth >= set.rr_depth {
-            let q = beta.max_channel();
-            if q < 1.0 {
-                let q = q.max(0.05);
-                if rng.next() >= q {
-                    break;
-                }
-                beta = beta / q;
-            }
-        }
+        return Some(Vertex { path: 0, material, frame, ng, p, wo: frame.to_local(wo_world), at, light, u });
     }
-    out
 }
 
-/// Renders one pixel: `(colour, alpha, albedo, normal)` averaged over the samples, and the
-/// number of dropped (non-finite) paths.
-fn render_pixel(scene: &Scene, set: &RenderSettings, x: u32, y: u32) -> ([f32; 3], f32, [f32; 3], [f32; 3], u64) {
-    let w = scene.camera.width() as u64;
-    let mut rng = Sampler(Pcg32::new(set.seed, y as u64 * w + x as u64));
-    let (mut c, mut a, mut al, mut n) = ([0.0f64; 3], 0.0f64, [0.0f64; 3], [0.0f64; 3]);
-    let mut invalid = 0;
-    for _ in 0..set.spp {
-        let j = if set.jitter { rng.next2() } else { [0.5, 0.5] };
-        let cr = scene.camera.generate(x as f32 + j[0], y as f32 + j[1]);
-        let v = trace(scene, set, &cr, &mut rng);
-        let mut r = v.radiance;
-        if !r.is_finite() || r.min_channel() < 0.0 {
-            invalid += 1;
-            continue;
-        }
-        if set.clamp > 0.0 {
-            let m = r.max_channel();
-            if m > set.clamp {
-                r *= set.clamp / m;
+/// Adds the vertex's light sample and continues the path with the material's sample;
+/// `false` when the path ends here.
+fn finish(scene: &Scene, set: &RenderSettings, path: &mut Path, v: &Vertex, s: &Shaded, rng: &mut Sampler) -> bool {
+    if let Some(l) = &v.light {
+        if l.wi.z > 0.0 && !s.f_light.is_black() {
+            let o = offset_origin(v.p, v.ng, l.wi_world);
+            let tmax = if l.dist.is_finite() { l.dist * (1.0 - 1e-3) } else { f32::INFINITY };
+            if !scene.occluded(&Ray { o, d: l.wi_world, tmax }) {
+                let w = if l.delta { 1.0 } else { power_heuristic(l.pl, s.pdf_light) };
+                path.value.radiance += path.beta * s.f_light * l.li * (l.wi.z * w / l.pl);
             }
         }
-        for k in 0..3 {
-            c[k] += r[k] as f64;
-        }
-        a += v.alpha as f64;
-        if set.aovs && v.albedo.is_finite() {
-            al[0] += v.albedo.r as f64;
-            al[1] += v.albedo.g as f64;
-            al[2] += v.albedo.b as f64;
-            n[0] += v.normal.x as f64;
-            n[1] += v.normal.y as f64;
-            n[2] += v.normal.z as f64;
+    }
+    let Some(bs) = s.sample else { return false };
+    if path.depth == 0 && set.aovs {
+        path.value.albedo = bs.weight;
+    }
+    let wi_world = v.frame.to_world(bs.wi);
+    if wi_world.dot(v.ng) <= 0.0 {
+        return false;
+    }
+    path.beta = path.beta * bs.weight;
+    path.prev_delta = bs.delta;
+    path.prev_pdf = bs.pdf;
+    path.prev_p = v.p;
+    path.ray = Ray::new(offset_origin(v.p, v.ng, wi_world), wi_world);
+    path.passed = 0.0;
+    path.depth += 1;
+    if path.depth >= set.rr_depth {
+        let q = path.beta.max_channel();
+        if q < 1.0 {
+            let q = q.max(0.05);
+            if rng.next() >= q {
+                return false;
+            }
+            path.beta = path.beta / q;
         }
     }
+    true
+}
+
+/// Structure-of-arrays staging of one material's vertices for the batch calls.
+#[derive(Default)]
+struct ShadeBuffers {
+    wo: [Vec<f32>; 3],
+    wi_light: [Vec<f32>; 3],
+    u: [Vec<f32>; 3],
+    f: [Vec<f32>; 3],
+    pdf: Vec<f32>,
+    wi: [Vec<f32>; 3],
+    weight: [Vec<f32>; 3],
+    sample_pdf: Vec<f32>,
+    flags: Vec<u32>,
+    eval_active: Vec<u8>,
+    at: Vec<SurfacePoint>,
+}
+
+impl ShadeBuffers {
+    fn resize(&mut self, n: usize) {
+        for v in self.wo.iter_mut().chain(&mut self.wi_light).chain(&mut self.u).chain(&mut self.f) {
+            v.resize(n, 0.0);
+        }
+        for v in self.wi.iter_mut().chain(&mut self.weight) {
+            v.resize(n, 0.0);
+        }
+        self.pdf.resize(n, 0.0);
+        self.sample_pdf.resize(n, 0.0);
+        self.flags.resize(n, 0);
+        self.eval_active.resize(n, 0);
+    }
+}
+
+fn src3(v: &[Vec<f32>; 3]) -> Src3<'_, f32> {
+    Src3::soa(&v[0], &v[1], &v[2]).expect("staging arrays have equal lengths")
+}
+
+fn dst3(v: &mut [Vec<f32>; 3]) -> Dst3<'_, f32> {
+    let [x, y, z] = v;
+    Dst3::soa(x, y, z).expect("staging arrays have equal lengths")
+}
+
+/// Shades the vertices `group` (indices into `vertices`, all of material `mat`) with two batch
+/// calls through the SIMD kernels: the light samples' `f` and density, then the material's
+/// samples. Camera-ray hits carry their footprint, so a spatially varying material (sparkle)
+/// gets `eval_at`/`sample_at` values: the batch calls at surface points scale the flake lobes
+/// per element.
+fn shade_group(mat: &Material, vertices: &[Vertex], group: &[u32], buf: &mut ShadeBuffers, out: &mut [Shaded]) {
+    let n = group.len();
+    buf.resize(n);
+    // No footprint: the mean BRDF (a non-finite surface point means exactly that).
+    let mean = SurfacePoint { uv: [f64::NAN; 2], ..SurfacePoint::default() };
+    buf.at.clear();
+    for (k, &vi) in group.iter().enumerate() {
+        let v = &vertices[vi as usize];
+        let wi = v.light.as_ref().map_or(V3::zero(), |l| l.wi);
+        for (c, (o, i)) in [(v.wo.x, wi.x), (v.wo.y, wi.y), (v.wo.z, wi.z)].into_iter().enumerate() {
+            buf.wo[c][k] = o;
+            buf.wi_light[c][k] = i;
+            buf.u[c][k] = v.u[c];
+        }
+        buf.eval_active[k] = u8::from(v.light.is_some());
+        buf.at.push(v.at.unwrap_or(mean));
+    }
+    // The views are built from arrays of one length, so the calls cannot fail.
+    {
+        let (wo, wi) = (src3(&buf.wo), src3(&buf.wi_light));
+        let f = dst3(&mut buf.f);
+        let pdf = Dst1::new(&mut buf.pdf);
+        let _ = batch::eval_pdf_at(mat, &wi, &wo, &buf.at, Some(&buf.eval_active), Some(&f), Some(&pdf));
+    }
+    {
+        let (wo, u) = (src3(&buf.wo), src3(&buf.u));
+        let mut so = SampleOut {
+            wi: dst3(&mut buf.wi),
+            weight: dst3(&mut buf.weight),
+            pdf: Dst1::new(&mut buf.sample_pdf),
+            flags: Some(&mut buf.flags),
+        };
+        let _ = batch::sample_at(mat, &wo, &u, &buf.at, None, &mut so);
+    }
+    for (k, &vi) in group.iter().enumerate() {
+        let s = &mut out[vi as usize];
+        if vertices[vi as usize].light.is_some() {
+            s.f_light = C::new(buf.f[0][k], buf.f[1][k], buf.f[2][k]);
+            s.pdf_light = buf.pdf[k];
+        }
+        let flags = buf.flags[k];
+        s.sample = (flags & (batch::SAMPLE_FAILED | batch::SAMPLE_INVALID_INPUT) == 0).then(|| BsdfSample {
+            wi: V3::new(buf.wi[0][k], buf.wi[1][k], buf.wi[2][k]),
+            weight: C::new(buf.weight[0][k], buf.weight[1][k], buf.weight[2][k]),
+            pdf: buf.sample_pdf[k],
+            delta: flags & batch::SAMPLE_DELTA != 0,
+        });
+    }
+}
+
+/// Sums of one pixel's samples.
+#[derive(Clone, Copy, Default)]
+struct PixelSum {
+    color: [f64; 3],
+    alpha: f64,
+    albedo: [f64; 3],
+    normal: [f64; 3],
+}
+
+/// Renders one tile, all its pixels' paths of one sample index at a time (a wave): paths are
+/// traced to their next vertex one by one, then every vertex of a material is shaded in
+/// one batch call, then the paths go on. Each pixel's random stream is drawn in the same order
+/// as a path traced alone. Returns the pixels (rows of the tile) and the number of dropped
+/// (non-finite) paths, or `None` when cancelled.
+fn render_tile(
+    scene: &Scene,
+    set: &RenderSettings,
+    t: &Tile,
+    cancel: &AtomicBool,
+    done: &AtomicU64,
+) -> Option<(Vec<PixelValue>, u64)> {
+    let w = scene.camera.width() as u64;
+    let coords: Vec<(u32, u32)> = (t.y0..t.y1).flat_map(|y| (t.x0..t.x1).map(move |x| (x, y))).collect();
+    let mut rngs: Vec<Sampler> =
+        coords.iter().map(|&(x, y)| Sampler(Pcg32::new(set.seed, y as u64 * w + x as u64))).collect();
+    let mut sums = vec![PixelSum::default(); coords.len()];
+    let mut invalid = 0u64;
+    let mut paths: Vec<Path> = Vec::with_capacity(coords.len());
+    let (mut alive, mut next): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
+    let mut vertices: Vec<Vertex> = Vec::with_capacity(coords.len());
+    let mut shaded: Vec<Shaded> = Vec::new();
+    let mut groups: Vec<Vec<u32>> = vec![Vec::new(); scene.materials.len()];
+    let mut buf = ShadeBuffers::default();
+    for _ in 0..set.spp {
+        if cancel.load(Ordering::Relaxed) {
+            return None;
+        }
+        paths.clear();
+        for (k, &(x, y)) in coords.iter().enumerate() {
+            let j = if set.jitter { rngs[k].next2() } else { [0.5, 0.5] };
+            paths.push(Path::new(scene.camera.generate(x as f32 + j[0], y as f32 + j[1])));
+        }
+        alive.clear();
+        alive.extend(0..coords.len() as u32);
+        while !alive.is_empty() {
+            vertices.clear();
+            for &i in &alive {
+                if let Some(mut v) = advance(scene, set, &mut paths[i as usize], &mut rngs[i as usize]) {
+                    v.path = i;
+                    vertices.push(v);
+                }
+            }
+            shaded.clear();
+            shaded.resize(vertices.len(), Shaded::default());
+            for g in &mut groups {
+                g.clear();
+            }
+            for (vi, v) in vertices.iter().enumerate() {
+                groups[v.material as usize].push(vi as u32);
+            }
+            for (mi, g) in groups.iter().enumerate() {
+                if !g.is_empty() {
+                    shade_group(&scene.materials[mi], &vertices, g, &mut buf, &mut shaded);
+                }
+            }
+            next.clear();
+            for (v, s) in vertices.iter().zip(&shaded) {
+                let i = v.path as usize;
+                if finish(scene, set, &mut paths[i], v, s, &mut rngs[i]) {
+                    next.push(v.path);
+                }
+            }
+            std::mem::swap(&mut alive, &mut next);
+        }
+        for (sum, path) in sums.iter_mut().zip(&paths) {
+            let v = &path.value;
+            let mut r = v.radiance;
+            if !r.is_finite() || r.min_channel() < 0.0 {
+                invalid += 1;
+                continue;
+            }
+            if set.clamp > 0.0 {
+                let m = r.max_channel();
+                if m > set.clamp {
+                    r *= set.clamp / m;
+                }
+            }
+            for k in 0..3 {
+                sum.color[k] += r[k] as f64;
+            }
+            sum.alpha += v.alpha as f64;
+            if set.aovs && v.albedo.is_finite() {
+                for (k, n) in [v.normal.x, v.normal.y, v.normal.z].into_iter().enumerate() {
+                    sum.albedo[k] += v.albedo[k] as f64;
+                    sum.normal[k] += n as f64;
+                }
+            }
+        }
+        done.fetch_add(coords.len() as u64, Ordering::Relaxed);
+    }
     let inv = 1.0 / set.spp.max(1) as f64;
-    let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
-    (c.map(|v| (v * inv) as f32), (a * inv) as f32, al.map(|v| (v * inv) as f32), normal, invalid)
+    let px = sums
+        .iter()
+        .map(|s| {
+            let n = s.normal;
+            let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
+            (s.color.map(|v| (v * inv) as f32), (s.alpha * inv) as f32, s.albedo.map(|v| (v * inv) as f32), normal)
+        })
+        .collect();
+    Some((px, invalid))
 }
 
 /// Colour, alpha, albedo, normal of one pixel.
@@ -441,7 +662,9 @@ pub fn render(
             tiles.push(Tile { x0, y0, x1: (x0 + ts).min(w), y1: (y0 + ts).min(h) });
         }
     }
-    let total_rows = tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>().max(1);
+    // Progress counts pixel samples (a tile reports after each sample index).
+    let total_rows =
+        (tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>() * u64::from(set.spp)).max(1);
     let done = AtomicU64::new(0);
     let invalid = AtomicU64::new(0);
     let cancel = AtomicBool::new(false);
@@ -451,19 +674,9 @@ pub fn render(
         tiles
             .par_iter()
             .map(|t| {
-                let mut px = Vec::with_capacity(((t.x1 - t.x0) * (t.y1 - t.y0)) as usize);
-                for y in t.y0..t.y1 {
-                    if cancel.load(Ordering::Relaxed) {
-                        return None;
-                    }
-                    for x in t.x0..t.x1 {
-                        let (c, a, al, n, bad) = render_pixel(scene, set, x, y);
-                        if bad > 0 {
-                            invalid.fetch_add(bad, Ordering::Relaxed);
-                        }
-                        px.push((c, a, al, n));
-                    }
-                    done.fetch_add((t.x1 - t.x0) as u64, Ordering::Relaxed);
+                let (px, bad) = render_tile(scene, set, t, &cancel, &done)?;
+                if bad > 0 {
+                    invalid.fetch_add(bad, Ordering::Relaxed);
                 }
                 Some(px)
             })

@@ -211,6 +211,18 @@ impl Model {
         )
     }
 
+    /// The multipliers `[metallic flakes, pearlescent flakes]` of the spatially varying lobes
+    /// at `at` for unit directions above the surface: `eval_at(wi, wo, at)` is the lane
+    /// kernels' `eval_scaled(wi, wo, scales)`. `[1, 1]` for models that do not vary (then
+    /// `eval_at` is `eval`) and for a non-finite surface point.
+    #[must_use]
+    pub fn sparkle_scales<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> [f64; 2] {
+        match self {
+            Model::CoatedPaint(p) => p.sparkle_scales(wi, wo, at),
+            _ => [1.0; 2],
+        }
+    }
+
     /// [`Model::eval`] per lane (unit, finite directions): zero where a direction is at or
     /// below the horizon.
     #[inline(always)]
@@ -318,6 +330,12 @@ pub trait LaneKernel: Sync {
     fn pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L;
     /// Samples per lane.
     fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L>;
+    /// `f_r` per lane with the spatially varying lobes scaled ([`LaneBxdf::eval_scaled_lanes`]).
+    #[inline(always)]
+    fn eval_scaled<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2]) -> Rgb<L> {
+        let _ = scale;
+        self.eval(wi, wo)
+    }
 }
 
 /// Receives a model's [`LaneKernel`] ([`Model::visit_kernel`]).
@@ -360,6 +378,12 @@ impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
     fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
         let f = self.0.eval_lanes(above_or_up(above, wi), above_or_up(above, wo));
+        Rgb::select(above, f, Rgb::zero())
+    }
+    #[inline(always)]
+    fn eval_scaled<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2]) -> Rgb<L> {
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
+        let f = self.0.eval_scaled_lanes(above_or_up(above, wi), above_or_up(above, wo), scale);
         Rgb::select(above, f, Rgb::zero())
     }
     #[inline(always)]

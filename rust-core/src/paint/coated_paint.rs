@@ -338,12 +338,29 @@ impl CoatedPaint {
     /// the directions refracted into the coat).
     #[inline]
     fn eval_sparkle<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
-        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-        let (metal, pearl) = match crate::frame::half_vector(wi_in, wo_in) {
-            Some(h) => sparkle.multipliers(h.cast::<f64>(), at),
-            None => (1.0, 1.0),
-        };
+        let [metal, pearl] = self.sparkle_multipliers(sparkle, wi, wo, at);
         self.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
+    }
+
+    /// The sparkle's multipliers `[metallic, pearlescent]` of the flake lobes for one pair of
+    /// directions at `at` (the half vector inside the coat picks the direction cell).
+    fn sparkle_multipliers<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> [f64; 2] {
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        match crate::frame::half_vector(wi_in, wo_in) {
+            Some(h) => sparkle.multipliers(h.cast::<f64>(), at).into(),
+            None => [1.0; 2],
+        }
+    }
+
+    /// The multipliers `[metallic, pearlescent]` that turn [`Bxdf::eval`] into
+    /// [`Bxdf::eval_at`] for directions above the surface: `[1, 1]` without sparkle or for a
+    /// non-finite surface point (the batch calls at surface points use them with the lane kernels).
+    #[must_use]
+    pub fn sparkle_scales<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> [f64; 2] {
+        match &self.sparkle_layer {
+            Some(s) if at.is_finite() => self.sparkle_multipliers(s, wi, wo, at),
+            _ => [1.0; 2],
+        }
     }
 
     /// A sample of `wo` weighted with the BRDF `f` (the sparkle version of the lobe).
@@ -550,6 +567,11 @@ impl LaneBxdf for CoatedPaint {
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         self.eval_scaled(wi, wo, L::c(1.0), L::c(1.0))
+    }
+
+    #[inline(always)]
+    fn eval_scaled_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2]) -> Rgb<L> {
+        self.eval_scaled(wi, wo, scale[0], scale[1])
     }
 
     #[inline(always)]
