@@ -140,4 +140,18 @@ mod tests {
         let tl = c.generate(0.0, 0.0).ray.d;
         assert!(tl.x < 0.0 && tl.y > 0.0);
     }
+
+    /// Every sample of a pixel carries the pixel centre's differentials (one footprint per
+    /// pixel), and its own ray goes through its offset.
+    #[test]
+    fn samples_of_a_pixel_share_the_centre_differentials() {
+        let c = Camera::look_at(v3(0.0, 0.0, 5.0), v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), 40.0, 200, 100);
+        let centre = c.generate(30.5, 70.5);
+        for o in [[0.0, 0.0], [0.9, 0.1], [0.25, 0.99]] {
+            let r = c.generate_in_pixel(30, 70, o);
+            assert_eq!((r.centre, r.dx, r.dy), (centre.centre, centre.dx, centre.dy));
+            let own = c.generate(30.0 + o[0], 70.0 + o[1]).ray.d;
+            assert!((r.ray.d - own).length() < 1e-7);
+        }
+    }
 }

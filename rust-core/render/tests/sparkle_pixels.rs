@@ -10,8 +10,9 @@
 //!
 //! Before issue 17 every jittered sample got a footprint centred on itself, so a pixel
 //! averaged the counts of the 1–4 grid cells its shifted footprints overlapped: the render's
-//! variance was 0.42–0.50 of the simulation's and 1.4–1.6× as many pixels glinted (numbers in
-//! docs/paint-validation.md §4), and this test failed on every configuration.
+//! variance was 0.51–0.56 of the simulation's (z −7 to −27), 17–25 % fewer pixels showed half a
+//! flake's glint or more and two-flake pixels were 2–5× too rare (numbers in
+//! docs/paint-validation.md §4); this test failed on every configuration.
 //!
 //! `cargo test -p lacquer-render --test sparkle_pixels -- --nocapture` prints the table.
 
