@@ -143,6 +143,9 @@ impl Plot {
     }
 
     fn legend(&self, items: &mut Vec<Item>, x: f64, y: f64) {
+        let longest = self.series.iter().map(|s| s.label.chars().count()).max().unwrap_or(0) as f64;
+        let (w, h) = (40.0 + 7.0 * longest, 16.0 * self.series.len() as f64 + 4.0);
+        items.push(Item::Rect { x: x - 6.0, y: y - 10.0, w, h, fill: [255; 3] });
         for (i, s) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             let yy = y + 16.0 * i as f64;
@@ -153,7 +156,14 @@ impl Plot {
                 dashed: s.style == Style::Dashed,
                 data: None,
             });
-            items.push(Item::Text { x: x + 28.0, y: yy + 4.0, text: s.label.clone(), size: 12.0, anchor: "start", color: [0; 3] });
+            items.push(Item::Text {
+                x: x + 28.0,
+                y: yy + 4.0,
+                text: s.label.clone(),
+                size: 12.0,
+                anchor: "start",
+                color: [0; 3],
+            });
         }
     }
 
@@ -163,21 +173,56 @@ impl Plot {
         let ((x0, x1), (y0, y1)) = self.ranges();
         let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
         let py = |y: f64| {
-            let y = if self.log_y { if y > 0.0 { y.log10().max(y0) } else { y0 } } else { y };
+            let y = if self.log_y {
+                if y > 0.0 {
+                    y.log10().max(y0)
+                } else {
+                    y0
+                }
+            } else {
+                y
+            };
             h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom)
         };
         let mut items = vec![Item::Rect { x: 0.0, y: 0.0, w, h, fill: [255; 3] }];
         let grey = [200, 200, 200];
         for t in ticks(x0, x1, 8) {
-            items.push(Item::Line { pts: vec![(px(t), top), (px(t), h - bottom)], color: grey, width: 1.0, dashed: false, data: None });
-            items.push(Item::Text { x: px(t), y: h - bottom + 16.0, text: fmt_tick(t), size: 11.0, anchor: "middle", color: [0; 3] });
+            items.push(Item::Line {
+                pts: vec![(px(t), top), (px(t), h - bottom)],
+                color: grey,
+                width: 1.0,
+                dashed: false,
+                data: None,
+            });
+            items.push(Item::Text {
+                x: px(t),
+                y: h - bottom + 16.0,
+                text: fmt_tick(t),
+                size: 11.0,
+                anchor: "middle",
+                color: [0; 3],
+            });
         }
-        let yt: Vec<f64> = if self.log_y { (y0 as i64..=y1 as i64).map(|e| e as f64).collect() } else { ticks(y0, y1, 6) };
+        let yt: Vec<f64> =
+            if self.log_y { (y0 as i64..=y1 as i64).map(|e| e as f64).collect() } else { ticks(y0, y1, 6) };
         for t in yt {
             let yy = if self.log_y { h - bottom - (t - y0) / (y1 - y0) * (h - top - bottom) } else { py(t) };
             let label = if self.log_y { fmt_tick(10f64.powf(t)) } else { fmt_tick(t) };
-            items.push(Item::Line { pts: vec![(left, yy), (w - right, yy)], color: grey, width: 1.0, dashed: false, data: None });
-            items.push(Item::Text { x: left - 6.0, y: yy + 4.0, text: label, size: 11.0, anchor: "end", color: [0; 3] });
+            items.push(Item::Line {
+                pts: vec![(left, yy), (w - right, yy)],
+                color: grey,
+                width: 1.0,
+                dashed: false,
+                data: None,
+            });
+            items.push(Item::Text {
+                x: left - 6.0,
+                y: yy + 4.0,
+                text: label,
+                size: 11.0,
+                anchor: "end",
+                color: [0; 3],
+            });
         }
         let frame = vec![(left, top), (w - right, top), (w - right, h - bottom), (left, h - bottom), (left, top)];
         items.push(Item::Line { pts: frame, color: [0; 3], width: 1.0, dashed: false, data: None });
@@ -191,7 +236,12 @@ impl Plot {
                     pts.push((px(x + half), py(y)));
                 }
             } else {
-                pts = s.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).map(|&(x, y)| (px(x), py(y))).collect();
+                pts = s
+                    .points
+                    .iter()
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .map(|&(x, y)| (px(x), py(y)))
+                    .collect();
             }
             items.push(Item::Line {
                 pts,
@@ -201,10 +251,32 @@ impl Plot {
                 data: Some((s.label.clone(), s.points.clone())),
             });
         }
-        items.push(Item::Text { x: w / 2.0, y: 20.0, text: self.title.clone(), size: 14.0, anchor: "middle", color: [0; 3] });
-        items.push(Item::Text { x: (left + w - right) / 2.0, y: h - 12.0, text: self.xlabel.clone(), size: 12.0, anchor: "middle", color: [0; 3] });
-        items.push(Item::Text { x: 8.0, y: top - 8.0, text: self.ylabel.clone(), size: 12.0, anchor: "start", color: [0; 3] });
-        self.legend(&mut items, w - right - 230.0, top + 16.0);
+        items.push(Item::Text {
+            x: w / 2.0,
+            y: 20.0,
+            text: self.title.clone(),
+            size: 14.0,
+            anchor: "middle",
+            color: [0; 3],
+        });
+        items.push(Item::Text {
+            x: (left + w - right) / 2.0,
+            y: h - 12.0,
+            text: self.xlabel.clone(),
+            size: 12.0,
+            anchor: "middle",
+            color: [0; 3],
+        });
+        items.push(Item::Text {
+            x: 8.0,
+            y: top - 8.0,
+            text: self.ylabel.clone(),
+            size: 12.0,
+            anchor: "start",
+            color: [0; 3],
+        });
+        let longest = self.series.iter().map(|s| s.label.chars().count()).max().unwrap_or(0) as f64;
+        self.legend(&mut items, (w - right - 50.0 - 7.0 * longest).max(left + 10.0), top + 16.0);
         Figure { width, height, items }
     }
 
@@ -214,7 +286,15 @@ impl Plot {
         let (cx, cy) = (w / 2.0, h - 40.0);
         let radius = (w / 2.0 - 30.0).min(h - 90.0);
         let rad = |v: f64| {
-            let v = if self.log_y { if v > 0.0 { v.log10().max(r0) } else { r0 } } else { v.max(0.0) };
+            let v = if self.log_y {
+                if v > 0.0 {
+                    v.log10().max(r0)
+                } else {
+                    r0
+                }
+            } else {
+                v.max(0.0)
+            };
             (v - r0) / (r1 - r0) * radius
         };
         let at = |theta_deg: f64, r: f64| {
@@ -223,23 +303,45 @@ impl Plot {
         };
         let mut items = vec![Item::Rect { x: 0.0, y: 0.0, w, h, fill: [255; 3] }];
         let grey = [200, 200, 200];
-        let rings: Vec<f64> = if self.log_y { (r0 as i64..=r1 as i64).map(|e| e as f64).collect() } else { ticks(r0, r1, 4) };
+        let rings: Vec<f64> =
+            if self.log_y { (r0 as i64..=r1 as i64).map(|e| e as f64).collect() } else { ticks(r0, r1, 4) };
         for t in rings {
             let rr = (t - r0) / (r1 - r0) * radius;
             let pts: Vec<(f64, f64)> = (0..=90).map(|k| at(-90.0 + 2.0 * k as f64, rr)).collect();
             items.push(Item::Line { pts, color: grey, width: 1.0, dashed: false, data: None });
             let label = if self.log_y { fmt_tick(10f64.powf(t)) } else { fmt_tick(t) };
-            items.push(Item::Text { x: cx + rr, y: cy + 14.0, text: label, size: 10.0, anchor: "middle", color: [0; 3] });
+            items.push(Item::Text {
+                x: cx + rr,
+                y: cy + 14.0,
+                text: label,
+                size: 10.0,
+                anchor: "middle",
+                color: [0; 3],
+            });
         }
         for a in [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0] {
             let (ex, ey) = at(a, radius);
-            items.push(Item::Line { pts: vec![(cx, cy), (ex, ey)], color: grey, width: 1.0, dashed: false, data: None });
+            items.push(Item::Line {
+                pts: vec![(cx, cy), (ex, ey)],
+                color: grey,
+                width: 1.0,
+                dashed: false,
+                data: None,
+            });
             let (tx, ty) = at(a, radius + 12.0);
-            items.push(Item::Text { x: tx, y: ty + 4.0, text: format!("{a:.0}"), size: 10.0, anchor: "middle", color: [0; 3] });
+            items.push(Item::Text {
+                x: tx,
+                y: ty + 4.0,
+                text: format!("{a:.0}"),
+                size: 10.0,
+                anchor: "middle",
+                color: [0; 3],
+            });
         }
         for (i, s) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            let pts = s.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).map(|&(x, y)| at(x, rad(y))).collect();
+            let pts =
+                s.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).map(|&(x, y)| at(x, rad(y))).collect();
             items.push(Item::Line {
                 pts,
                 color,
@@ -248,8 +350,22 @@ impl Plot {
                 data: Some((s.label.clone(), s.points.clone())),
             });
         }
-        items.push(Item::Text { x: w / 2.0, y: 20.0, text: self.title.clone(), size: 14.0, anchor: "middle", color: [0; 3] });
-        items.push(Item::Text { x: 8.0, y: h - 8.0, text: format!("radius: {}", self.ylabel), size: 11.0, anchor: "start", color: [0; 3] });
+        items.push(Item::Text {
+            x: w / 2.0,
+            y: 20.0,
+            text: self.title.clone(),
+            size: 14.0,
+            anchor: "middle",
+            color: [0; 3],
+        });
+        items.push(Item::Text {
+            x: 8.0,
+            y: h - 8.0,
+            text: format!("radius: {}", self.ylabel),
+            size: 11.0,
+            anchor: "start",
+            color: [0; 3],
+        });
         self.legend(&mut items, w - 250.0, 44.0);
         Figure { width, height, items }
     }
@@ -277,7 +393,11 @@ impl Figure {
         for item in &self.items {
             match item {
                 Item::Rect { x, y, w, h, fill } => {
-                    let _ = writeln!(s, r#"<rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}" fill="{}"/>"#, hex(*fill));
+                    let _ = writeln!(
+                        s,
+                        r#"<rect x="{x:.2}" y="{y:.2}" width="{w:.2}" height="{h:.2}" fill="{}"/>"#,
+                        hex(*fill)
+                    );
                 }
                 Item::Text { x, y, text, size, anchor, color } => {
                     let _ = writeln!(
@@ -332,7 +452,14 @@ impl Figure {
                 Item::Line { pts, color, width, dashed, .. } => {
                     let mut run = 0.0;
                     for seg in pts.windows(2) {
-                        draw_segment(&mut img, seg[0], seg[1], *width, *color, if *dashed { Some(&mut run) } else { None });
+                        draw_segment(
+                            &mut img,
+                            seg[0],
+                            seg[1],
+                            *width,
+                            *color,
+                            if *dashed { Some(&mut run) } else { None },
+                        );
                     }
                 }
                 Item::Text { x, y, text, size, anchor, color } => {

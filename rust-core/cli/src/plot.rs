@@ -136,7 +136,10 @@ fn sources(args: &PlotArgs) -> Result<Vec<Source>, String> {
             first_table = Some(table.clone());
         }
         let name = std::path::Path::new(path).file_stem().and_then(|s| s.to_str()).unwrap_or(path).to_string();
-        out.push(Source { label: format!("{name} (table)"), lobes: vec![lacquer::measured::material_from_table(table)] });
+        out.push(Source {
+            label: format!("{name} (table)"),
+            lobes: vec![lacquer::measured::material_from_table(table)],
+        });
     }
     if !args.fit.is_empty() {
         let Some(table) = first_table else {
@@ -201,7 +204,11 @@ fn albedo(src: &Source, step: f64, n: usize, ch: &str) -> Vec<(f64, f64)> {
                 let mut acc = Rgb::zero();
                 for i in 0..side {
                     for j in 0..side {
-                        let u = [(i as f64 + rng.uniform()) / side as f64, (j as f64 + rng.uniform()) / side as f64, rng.uniform()];
+                        let u = [
+                            (i as f64 + rng.uniform()) / side as f64,
+                            (j as f64 + rng.uniform()) / side as f64,
+                            rng.uniform(),
+                        ];
                         if let Some(s) = m.sample(wo, u) {
                             if s.weight.is_finite() {
                                 acc += s.weight;
@@ -292,7 +299,11 @@ fn run_inner(args: &PlotArgs) -> Result<(), String> {
             plot.xlabel = "θo (degrees; the mirror direction is at −θi)".into();
             plot.ylabel = "f (1/sr)".into();
             for s in &srcs {
-                plot.series.push(Series { label: s.label.clone(), points: in_plane(s, args.theta, args.step, ch), style: Style::Line });
+                plot.series.push(Series {
+                    label: s.label.clone(),
+                    points: in_plane(s, args.theta, args.step, ch),
+                    style: Style::Line,
+                });
             }
         }
         "albedo" => {
@@ -301,12 +312,18 @@ fn run_inner(args: &PlotArgs) -> Result<(), String> {
             plot.xlabel = "θo (degrees)".into();
             plot.ylabel = "albedo".into();
             for s in &srcs {
-                plot.series.push(Series { label: s.label.clone(), points: albedo(s, args.step, n, ch), style: Style::Line });
+                plot.series.push(Series {
+                    label: s.label.clone(),
+                    points: albedo(s, args.step, n, ch),
+                    style: Style::Line,
+                });
             }
         }
         "sampler" => {
             if srcs.len() != 1 || srcs[0].lobes.len() != 1 {
-                return Err("sampler plots one material (one lobe): give exactly one --preset, --material or --table".into());
+                return Err(
+                    "sampler plots one material (one lobe): give exactly one --preset, --material or --table".into()
+                );
             }
             let n = args.samples.unwrap_or(400_000);
             let (hist, pdf, delta) = sampler(&srcs[0].lobes[0], args.theta, n);
@@ -323,7 +340,11 @@ fn run_inner(args: &PlotArgs) -> Result<(), String> {
     if args.json {
         let series: Vec<Value> =
             plot.series.iter().map(|s| json!({"label": s.label, "x": s.points.iter().map(|p| p.0).collect::<Vec<_>>(), "y": s.points.iter().map(|p| p.1).collect::<Vec<_>>()})).collect();
-        println!("{}", serde_json::to_string_pretty(&json!({"output": args.output, "kind": args.kind, "series": series})).expect("serialisable"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({"output": args.output, "kind": args.kind, "series": series}))
+                .expect("serialisable")
+        );
     } else {
         eprintln!("wrote {} ({} curves)", args.output.display(), plot.series.len());
     }
@@ -351,7 +372,10 @@ fn run_sheet(args: &PlotArgs, srcs: Vec<Source>) -> Result<(), String> {
     let img = sheet::render_cells(&[row], args.cell, &DefaultScene::default(), &settings, &mut |_| true)?;
     img.to_png_image(0.0, ToneMap::Filmic).write_png(&args.output)?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&json!({"output": args.output, "cells": info})).expect("serialisable"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({"output": args.output, "cells": info})).expect("serialisable")
+        );
     } else {
         eprintln!("wrote {} ({} cells, {:.1} s)", args.output.display(), info.len(), img.fb.stats.seconds);
     }

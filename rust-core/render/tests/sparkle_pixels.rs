@@ -94,7 +94,8 @@ fn rendered_sparkle_has_the_pixel_statistics_of_explicit_flakes() {
         let se_mean = ((s.var + r.var) / s.n as f64).sqrt();
         // Variance: the log ratio's standard error from each sample's fourth moment,
         // Var(s²) ≈ (m4 − σ⁴)/n; 4.5 standard errors (measured |z| ≤ 1.7 after the fix).
-        let se_log_var = ((s.m4 / (s.var * s.var) - 1.0) / s.n as f64 + (r.m4 / (r.var * r.var) - 1.0) / r.n as f64).sqrt();
+        let se_log_var =
+            ((s.m4 / (s.var * s.var) - 1.0) / s.n as f64 + (r.m4 / (r.var * r.var) - 1.0) / r.n as f64).sqrt();
         let z_var = (r.var / s.var).ln() / se_log_var;
         // Glinting fraction: two-proportion z, 4.5 standard errors.
         let pg = 0.5 * (s.glint + r.glint);

@@ -193,7 +193,8 @@ pub fn simulate(setup: &PlaneSetup, px: &Pixels, seed: u64) -> Vec<f64> {
     let cam = setup.camera();
     let n = setup.pixels;
     // The region the image sees on the plane.
-    let corners = [(0.0, 0.0), (n as f32, 0.0), (0.0, n as f32), (n as f32, n as f32)].map(|(x, y)| on_plane(&cam, x, y));
+    let corners =
+        [(0.0, 0.0), (n as f32, 0.0), (0.0, n as f32), (n as f32, n as f32)].map(|(x, y)| on_plane(&cam, x, y));
     let lo = [0, 1].map(|i| corners.iter().map(|c| c[i]).fold(f64::INFINITY, f64::min));
     let hi = [0, 1].map(|i| corners.iter().map(|c| c[i]).fold(f64::NEG_INFINITY, f64::max));
     let m_max = 3.0;
