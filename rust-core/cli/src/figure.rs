@@ -122,7 +122,7 @@ impl Plot {
                 y1 = y1.max(y);
             }
         }
-        if !(x1 > x0) {
+        if x1.partial_cmp(&x0) != Some(std::cmp::Ordering::Greater) {
             (x0, x1) = (x0.min(0.0).min(x1), x0.max(1.0).max(x1));
         }
         if !(y0.is_finite() && y1.is_finite()) {
@@ -134,7 +134,7 @@ impl Plot {
             y1 = y1.ceil().max(y0 + 1.0);
         } else {
             y0 = y0.min(0.0);
-            if !(y1 > y0) {
+            if y1.partial_cmp(&y0) != Some(std::cmp::Ordering::Greater) {
                 y1 = y0 + 1.0;
             }
             y1 += 0.05 * (y1 - y0);

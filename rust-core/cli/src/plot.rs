@@ -86,6 +86,9 @@ pub struct PlotArgs {
     pub json: bool,
 }
 
+/// Plotted points `(x, y)`.
+type Curve = Vec<(f64, f64)>;
+
 /// A curve's source: a label and the lobes whose BRDFs add.
 struct Source {
     label: String,
@@ -225,7 +228,7 @@ fn albedo(src: &Source, step: f64, n: usize, ch: &str) -> Vec<(f64, f64)> {
 
 /// Histogram of sampled θi (per degree; delta-lobe samples left out) and the marginal of the
 /// pdf over azimuth, `∫ pdf sin θ dφ · π/180`, at the bins' centres (1° bins).
-fn sampler(m: &Material, theta_o: f64, n: usize) -> (Vec<(f64, f64)>, Vec<(f64, f64)>, usize) {
+fn sampler(m: &Material, theta_o: f64, n: usize) -> (Curve, Curve, usize) {
     let to = theta_o.to_radians();
     let wo = Vec3::new(to.sin(), 0.0, to.cos());
     let mut hist = vec![0usize; 90];
