@@ -7,7 +7,9 @@ use serde_json::{json, Value};
 use std::process::ExitCode;
 
 mod bench;
+mod figure;
 mod numerics;
+mod plot;
 mod render;
 
 #[derive(Parser)]
@@ -49,6 +51,9 @@ enum Command {
     /// Adversarial numerics report: NaN, Inf, negative outputs and reciprocity violations over
     /// 1e6 adversarial direction pairs per model and preset, f32 and f64 (docs/numerics.md).
     Numerics(numerics::NumericsArgs),
+    /// Plot BRDF slices (in-plane, polar), directional albedo, the sampler against its pdf, or
+    /// a render sheet of a MERL table and its fits: `lacquer plot in-plane --preset gold_flake_8 -o f.svg`.
+    Plot(Box<plot::PlotArgs>),
 }
 
 #[derive(Args)]
@@ -182,6 +187,7 @@ fn main() -> ExitCode {
         Command::FitNodeGroup(args) => run_fit_node_group(args),
         Command::Bench(args) => bench::run(args),
         Command::Numerics(args) => numerics::run(args),
+        Command::Plot(args) => plot::run(*args),
     }
 }
 

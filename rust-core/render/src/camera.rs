@@ -1,5 +1,6 @@
-//! A pinhole perspective camera with ray differentials (the direction one pixel to the right
-//! and one pixel down), from which hit points get their uv footprint.
+//! A pinhole perspective camera with ray differentials (the directions through the pixel's
+//! centre and one pixel to the right and down of it), from which hit points get their uv
+//! footprint: one footprint per pixel, whatever the sample's position inside it.
 
 use crate::geom::{Ray, V3};
 
@@ -17,14 +18,17 @@ pub struct Camera {
     height: u32,
 }
 
-/// A camera ray with its differentials (same origin, neighbouring pixels' directions).
+/// A camera ray with its differentials (same origin; the directions through the centre of the
+/// ray's pixel and through the centres of the pixels one to the right and one down).
 #[derive(Clone, Copy, Debug)]
 pub struct CameraRay {
     /// The ray (unit direction).
     pub ray: Ray,
-    /// Direction through the pixel one to the right.
+    /// Direction through the centre of the ray's pixel (the footprint's centre).
+    pub centre: V3,
+    /// Direction through the centre of the pixel one to the right.
     pub dx: V3,
-    /// Direction through the pixel one down.
+    /// Direction through the centre of the pixel one down.
     pub dy: V3,
 }
 
@@ -73,15 +77,33 @@ impl Camera {
         self.forward + self.right * sx + self.up * sy
     }
 
-    /// The ray through raster position `(x, y)`.
+    /// The ray through raster position `(x, y)`, its differentials centred on it (as if
+    /// `(x, y)` were a pixel centre).
     #[inline]
     #[must_use]
     pub fn generate(&self, x: f32, y: f32) -> CameraRay {
         let d = self.dir(x, y);
         CameraRay {
             ray: Ray::new(self.position, d.normalize()),
+            centre: d.normalize(),
             dx: self.dir(x + 1.0, y).normalize(),
             dy: self.dir(x, y + 1.0).normalize(),
+        }
+    }
+
+    /// The ray through `offset` ∈ [0, 1)² inside pixel `(px, py)`, with the differentials of
+    /// the pixel's centre: every sample of a pixel gets the same footprint (issue 17: with
+    /// differentials centred on each jittered sample, averaging a pixel's samples also
+    /// averaged the sparkle counts of the 1–4 grid cells the shifted footprints overlapped).
+    #[inline]
+    #[must_use]
+    pub fn generate_in_pixel(&self, px: u32, py: u32, offset: [f32; 2]) -> CameraRay {
+        let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
+        CameraRay {
+            ray: Ray::new(self.position, self.dir(px as f32 + offset[0], py as f32 + offset[1]).normalize()),
+            centre: self.dir(cx, cy).normalize(),
+            dx: self.dir(cx + 1.0, cy).normalize(),
+            dy: self.dir(cx, cy + 1.0).normalize(),
         }
     }
 
@@ -117,5 +139,19 @@ mod tests {
         // Pixel (0, 0) is top left: pointing up and left.
         let tl = c.generate(0.0, 0.0).ray.d;
         assert!(tl.x < 0.0 && tl.y > 0.0);
+    }
+
+    /// Every sample of a pixel carries the pixel centre's differentials (one footprint per
+    /// pixel), and its own ray goes through its offset.
+    #[test]
+    fn samples_of_a_pixel_share_the_centre_differentials() {
+        let c = Camera::look_at(v3(0.0, 0.0, 5.0), v3(0.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), 40.0, 200, 100);
+        let centre = c.generate(30.5, 70.5);
+        for o in [[0.0, 0.0], [0.9, 0.1], [0.25, 0.99]] {
+            let r = c.generate_in_pixel(30, 70, o);
+            assert_eq!((r.centre, r.dx, r.dy), (centre.centre, centre.dx, centre.dy));
+            let own = c.generate(30.0 + o[0], 70.0 + o[1]).ray.d;
+            assert!((r.ray.d - own).length() < 1e-7);
+        }
     }
 }

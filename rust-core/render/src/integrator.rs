@@ -184,8 +184,12 @@ struct PathValue {
     normal: V3,
 }
 
-/// The uv footprint of a camera ray's hit from its differentials (pbrt's approach: intersect
-/// the offset rays with the tangent plane, then solve for ∂uv/∂x, ∂uv/∂y in least squares).
+/// The uv footprint of a camera ray's pixel, for its hit (pbrt's approach: intersect the
+/// differential rays with the hit's tangent plane, then solve for ∂uv/∂x, ∂uv/∂y in least
+/// squares). The footprint is the pixel's, not the sample's: it is centred where the pixel
+/// centre's ray meets the tangent plane (uv moved there to first order; exactly on planes), so
+/// all samples of a pixel on one surface share one footprint and the sparkle counts of one
+/// set of grid cells (issue 17).
 fn footprint(cr: &CameraRay, hit: &Hit) -> Option<SurfacePoint> {
     if !hit.has_uv {
         return None;
@@ -193,6 +197,7 @@ fn footprint(cr: &CameraRay, hit: &Hit) -> Option<SurfacePoint> {
     let s = &hit.surf;
     let n = s.ng;
     let plane = n.dot(s.p - cr.ray.o);
+    // Where direction `d` from the eye meets the tangent plane, relative to the hit point.
     let offset = |d: V3| -> Option<V3> {
         let nd = n.dot(d);
         if nd.abs() < 1e-8 {
@@ -201,7 +206,8 @@ fn footprint(cr: &CameraRay, hit: &Hit) -> Option<SurfacePoint> {
         let t = plane / nd;
         (t > 0.0).then(|| cr.ray.o + d * t - s.p)
     };
-    let (dpdx, dpdy) = (offset(cr.dx)?, offset(cr.dy)?);
+    let centre = offset(cr.centre)?;
+    let (dpdx, dpdy) = (offset(cr.dx)? - centre, offset(cr.dy)? - centre);
     let (a, b, c) = (s.dpdu.dot(s.dpdu), s.dpdu.dot(s.dpdv), s.dpdv.dot(s.dpdv));
     let det = a * c - b * b;
     if !(det.abs() > 1e-20) {
@@ -211,7 +217,9 @@ fn footprint(cr: &CameraRay, hit: &Hit) -> Option<SurfacePoint> {
         let (bu, bv) = (s.dpdu.dot(d), s.dpdv.dot(d));
         [((c * bu - b * bv) / det) as f64, ((a * bv - b * bu) / det) as f64]
     };
-    let sp = SurfacePoint { uv: [s.uv[0] as f64, s.uv[1] as f64], duv_dx: solve(dpdx), duv_dy: solve(dpdy) };
+    let du = solve(centre);
+    let uv = [s.uv[0] as f64 + du[0], s.uv[1] as f64 + du[1]];
+    let sp = SurfacePoint { uv, duv_dx: solve(dpdx), duv_dy: solve(dpdy) };
     sp.is_finite().then_some(sp)
 }
 
@@ -563,7 +571,7 @@ fn render_tile(
         paths.clear();
         for (k, &(x, y)) in coords.iter().enumerate() {
             let j = if set.jitter { rngs[k].next2() } else { [0.5, 0.5] };
-            paths.push(Path::new(scene.camera.generate(x as f32 + j[0], y as f32 + j[1])));
+            paths.push(Path::new(scene.camera.generate_in_pixel(x, y, j)));
         }
         alive.clear();
         alive.extend(0..coords.len() as u32);

@@ -96,43 +96,64 @@ impl SheetSpec {
         set: &RenderSettings,
         progress: &mut dyn FnMut(f32) -> bool,
     ) -> Result<SheetImage, String> {
-        let label_scale = if cell >= 192 { 2 } else { 1 };
-        let band = 7 * label_scale + 2 * GAP;
-        let cols = self.columns() as u32;
-        let rows = self.rows.len() as u32;
-        let width = cols * cell + (cols + 1) * GAP;
-        let height = rows * (cell + band) + GAP;
-        let mut fb = Framebuffer::new(width, height, set.aovs);
-        let mut labels = Vec::new();
-        let total = self.rows.iter().map(|r| r.1.len()).sum::<usize>().max(1) as f32;
-        let mut k = 0usize;
-        let mut stats = RenderStats::default();
-        let mut cell_scene = scene.clone();
-        cell_scene.width = cell;
-        cell_scene.height = cell;
-        for (r, (row_label, cells)) in self.rows.iter().enumerate() {
-            for (c, (preset, col_label)) in cells.iter().enumerate() {
+        let mut rows = Vec::new();
+        for (row_label, cells) in self.rows {
+            let mut row = Vec::new();
+            for (preset, col_label) in cells.iter() {
                 let material = Material::preset(preset).map_err(|e| e.to_string())?;
-                let sc = cell_scene.build(material)?;
-                let done = k as f32;
-                let img = render(&sc, set, &mut |f| progress((done + f) / total))
-                    .map_err(|Cancelled| "render cancelled".to_string())?;
-                stats.seconds += img.stats.seconds;
-                stats.paths += img.stats.paths;
-                stats.invalid += img.stats.invalid;
-                let (x0, y0) = (GAP + c as u32 * (cell + GAP), GAP + r as u32 * (cell + band));
-                blit(&mut fb, &img, x0, y0);
                 let text =
                     if row_label.is_empty() { col_label.to_string() } else { format!("{row_label} {col_label}") };
-                let tw = font::text_width(&text, label_scale);
-                labels.push((x0 + cell.saturating_sub(tw) / 2, y0 + cell + GAP, text));
-                k += 1;
+                row.push((text, material));
             }
+            rows.push(row);
         }
-        stats.paths_per_second = stats.paths as f64 / stats.seconds.max(1e-9);
-        fb.stats = stats;
-        Ok(SheetImage { fb, labels, label_scale })
+        render_cells(&rows, cell, scene, set, progress)
     }
+}
+
+/// Renders rows of labelled materials, each at `cell × cell` pixels in the built-in scene (the
+/// same shader ball, light and seed for every cell), and composes them with a label under
+/// every cell. `progress` receives the fraction of the whole sheet.
+pub fn render_cells(
+    rows: &[Vec<(String, Material)>],
+    cell: u32,
+    scene: &DefaultScene,
+    set: &RenderSettings,
+    progress: &mut dyn FnMut(f32) -> bool,
+) -> Result<SheetImage, String> {
+    let label_scale = if cell >= 192 { 2 } else { 1 };
+    let band = 7 * label_scale + 2 * GAP;
+    let cols = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
+    let nrows = rows.len() as u32;
+    let width = cols * cell + (cols + 1) * GAP;
+    let height = nrows * (cell + band) + GAP;
+    let mut fb = Framebuffer::new(width, height, set.aovs);
+    let mut labels = Vec::new();
+    let total = rows.iter().map(Vec::len).sum::<usize>().max(1) as f32;
+    let mut k = 0usize;
+    let mut stats = RenderStats::default();
+    let mut cell_scene = scene.clone();
+    cell_scene.width = cell;
+    cell_scene.height = cell;
+    for (r, cells) in rows.iter().enumerate() {
+        for (c, (text, material)) in cells.iter().enumerate() {
+            let sc = cell_scene.build(material.clone())?;
+            let done = k as f32;
+            let img = render(&sc, set, &mut |f| progress((done + f) / total))
+                .map_err(|Cancelled| "render cancelled".to_string())?;
+            stats.seconds += img.stats.seconds;
+            stats.paths += img.stats.paths;
+            stats.invalid += img.stats.invalid;
+            let (x0, y0) = (GAP + c as u32 * (cell + GAP), GAP + r as u32 * (cell + band));
+            blit(&mut fb, &img, x0, y0);
+            let tw = font::text_width(text, label_scale);
+            labels.push((x0 + cell.saturating_sub(tw) / 2, y0 + cell + GAP, text.clone()));
+            k += 1;
+        }
+    }
+    stats.paths_per_second = stats.paths as f64 / stats.seconds.max(1e-9);
+    fb.stats = stats;
+    Ok(SheetImage { fb, labels, label_scale })
 }
 
 fn blit(dst: &mut Framebuffer, src: &Framebuffer, x0: u32, y0: u32) {

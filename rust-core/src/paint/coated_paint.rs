@@ -329,8 +329,7 @@ impl CoatedPaint {
     /// The half vector of `wi` and `wo` refracted into the coat (the flakes' frame of
     /// reference; the key of the sparkle direction cells).
     #[must_use]
-    #[cfg(test)]
-    pub(crate) fn binder_half_vector(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> Option<Vec3<f64>> {
+    pub fn binder_half_vector(&self, wi: Vec3<f64>, wo: Vec3<f64>) -> Option<Vec3<f64>> {
         crate::frame::half_vector(self.coat.refract_in(wi), self.coat.refract_in(wo))
     }
 
@@ -430,9 +429,11 @@ impl CoatedPaint {
         Rgb::new(a[0] * b[0] * n[0], a[1] * b[1] * n[1], a[2] * b[2] * n[2])
     }
 
-    /// Evaluation with the flake populations scaled (the sparkle layer plugs in here).
+    /// Evaluation with the flake populations' lobes scaled by `metal_scale` and `pearl_scale`
+    /// (the sparkle layer plugs in here; 1 = the mean lobe, 0 = everything but the flakes,
+    /// as explicit-flake simulations need).
     #[inline(always)]
-    pub(crate) fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+    pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let top = self.coat.reflection_eval(wi, wo);
         Rgb::splat(top) + self.layer_term(wi, wo, metal_scale, pearl_scale) + self.multiple_term(wi, wo)
     }
