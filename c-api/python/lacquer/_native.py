@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 4
+ABI_MINOR = 5
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]

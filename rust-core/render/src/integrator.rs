@@ -140,6 +140,7 @@ impl std::fmt::Display for Cancelled {
 impl std::error::Error for Cancelled {}
 
 /// Per-pixel random numbers (PCG32 in `f32`).
+#[derive(Clone)]
 struct Sampler(Pcg32);
 
 impl Sampler {
@@ -374,17 +375,46 @@ fn trace(scene: &Scene, set: &RenderSettings, cr: &CameraRay, rng: &mut Sampler)
     out
 }
 
-/// Renders one pixel: `(colour, alpha, albedo, normal)` averaged over the samples, and the
-/// number of dropped (non-finite) paths.
-fn render_pixel(scene: &Scene, set: &RenderSettings, x: u32, y: u32) -> ([f32; 3], f32, [f32; 3], [f32; 3], u64) {
-    let w = scene.camera.width() as u64;
-    let mut rng = Sampler(Pcg32::new(set.seed, y as u64 * w + x as u64));
-    let (mut c, mut a, mut al, mut n) = ([0.0f64; 3], 0.0f64, [0.0f64; 3], [0.0f64; 3]);
+/// One pixel between rounds of a progressive render: its random stream and the running sums
+/// of its samples (colour, alpha, albedo, normal; f64 as the one-shot render always summed).
+#[derive(Clone)]
+struct PixelState {
+    rng: Sampler,
+    c: [f64; 3],
+    a: f64,
+    al: [f64; 3],
+    n: [f64; 3],
+}
+
+impl PixelState {
+    fn new(set: &RenderSettings, width: u32, x: u32, y: u32) -> Self {
+        Self {
+            rng: Sampler(Pcg32::new(set.seed, y as u64 * width as u64 + x as u64)),
+            c: [0.0; 3],
+            a: 0.0,
+            al: [0.0; 3],
+            n: [0.0; 3],
+        }
+    }
+
+    /// The mean of `samples` samples: colour, alpha, albedo, unit normal.
+    fn value(&self, samples: u32) -> PixelValue {
+        let inv = 1.0 / samples.max(1) as f64;
+        let n = self.n;
+        let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
+        (self.c.map(|v| (v * inv) as f32), (self.a * inv) as f32, self.al.map(|v| (v * inv) as f32), normal)
+    }
+}
+
+/// Adds `n` samples to one pixel's sums; returns the number of dropped (non-finite) paths.
+fn render_samples(scene: &Scene, set: &RenderSettings, x: u32, y: u32, st: &mut PixelState, n: u32) -> u64 {
     let mut invalid = 0;
-    for _ in 0..set.spp {
+    for _ in 0..n {
+        let rng = &mut st.rng;
         let j = if set.jitter { rng.next2() } else { [0.5, 0.5] };
         let cr = scene.camera.generate(x as f32 + j[0], y as f32 + j[1]);
-        let v = trace(scene, set, &cr, &mut rng);
+        let v = trace(scene, set, &cr, rng);
         let mut r = v.radiance;
         if !r.is_finite() || r.min_channel() < 0.0 {
             invalid += 1;
@@ -397,22 +427,19 @@ fn render_pixel(scene: &Scene, set: &RenderSettings, x: u32, y: u32) -> ([f32; 3
             }
         }
         for k in 0..3 {
-            c[k] += r[k] as f64;
+            st.c[k] += r[k] as f64;
         }
-        a += v.alpha as f64;
+        st.a += v.alpha as f64;
         if set.aovs && v.albedo.is_finite() {
-            al[0] += v.albedo.r as f64;
-            al[1] += v.albedo.g as f64;
-            al[2] += v.albedo.b as f64;
-            n[0] += v.normal.x as f64;
-            n[1] += v.normal.y as f64;
-            n[2] += v.normal.z as f64;
+            st.al[0] += v.albedo.r as f64;
+            st.al[1] += v.albedo.g as f64;
+            st.al[2] += v.albedo.b as f64;
+            st.n[0] += v.normal.x as f64;
+            st.n[1] += v.normal.y as f64;
+            st.n[2] += v.normal.z as f64;
         }
     }
-    let inv = 1.0 / set.spp.max(1) as f64;
-    let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
-    (c.map(|v| (v * inv) as f32), (a * inv) as f32, al.map(|v| (v * inv) as f32), normal, invalid)
+    invalid
 }
 
 /// Colour, alpha, albedo, normal of one pixel.
@@ -425,6 +452,166 @@ struct Tile {
     y1: u32,
 }
 
+/// A render refined in rounds, for hosts that show the image while it converges (Blender's
+/// render window and viewport): [`Progressive::advance`] adds samples per pixel, and
+/// [`Progressive::framebuffer`] is the mean of the samples so far. Every pixel continues its
+/// own random stream and sums in the same order, so any split of `spp` samples into rounds
+/// gives the image [`render`] gives, bit for bit. Memory: about 100 bytes per pixel.
+pub struct Progressive {
+    width: u32,
+    height: u32,
+    set: RenderSettings,
+    pixels: Vec<PixelState>,
+    samples: u32,
+    invalid: u64,
+    seconds: f64,
+}
+
+impl Progressive {
+    /// A render of `scene` with `set` (its `spp` is the target) with no samples yet.
+    #[must_use]
+    pub fn new(scene: &Scene, set: &RenderSettings) -> Self {
+        let (w, h) = (scene.camera.width(), scene.camera.height());
+        let pixels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| PixelState::new(set, w, x, y));
+        Self { width: w, height: h, set: set.clone(), pixels: pixels.collect(), samples: 0, invalid: 0, seconds: 0.0 }
+    }
+
+    /// Samples per pixel done so far.
+    #[must_use]
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The samples per pixel asked for (the settings' `spp`).
+    #[must_use]
+    pub fn target(&self) -> u32 {
+        self.set.spp
+    }
+
+    /// Adds up to `n` samples per pixel (never beyond the target) and returns how many were
+    /// added. `progress(fraction of this round)` runs on the calling thread about ten times a
+    /// second; returning `false` cancels the round, which leaves the render as it was before it
+    /// (`Err(Cancelled)`; a later `advance` resumes). `scene` must be the scene given to `new`.
+    ///
+    /// # Panics
+    /// If `scene`'s image size differs from the one given to `new`.
+    pub fn advance(&mut self, scene: &Scene, n: u32, progress: &mut dyn FnMut(f32) -> bool) -> Result<u32, Cancelled> {
+        use rayon::prelude::*;
+        let (w, h) = (self.width, self.height);
+        assert_eq!((scene.camera.width(), scene.camera.height()), (w, h), "advance: not the scene of new()");
+        let n = n.min(self.set.spp.saturating_sub(self.samples));
+        if n == 0 {
+            return Ok(0);
+        }
+        let set = &self.set;
+        let ts = set.tile_size.max(1);
+        let mut tiles = Vec::new();
+        for y0 in (0..h).step_by(ts as usize) {
+            for x0 in (0..w).step_by(ts as usize) {
+                tiles.push(Tile { x0, y0, x1: (x0 + ts).min(w), y1: (y0 + ts).min(h) });
+            }
+        }
+        let total = tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>().max(1);
+        let done = AtomicU64::new(0);
+        let invalid = AtomicU64::new(0);
+        let cancel = AtomicBool::new(false);
+        let start = Instant::now();
+        let pixels = &self.pixels;
+
+        let work = || -> Vec<Option<Vec<PixelState>>> {
+            tiles
+                .par_iter()
+                .map(|t| {
+                    let mut px = Vec::with_capacity(((t.x1 - t.x0) * (t.y1 - t.y0)) as usize);
+                    for y in t.y0..t.y1 {
+                        if cancel.load(Ordering::Relaxed) {
+                            return None;
+                        }
+                        for x in t.x0..t.x1 {
+                            let mut st = pixels[(y * w + x) as usize].clone();
+                            let bad = render_samples(scene, set, x, y, &mut st, n);
+                            if bad > 0 {
+                                invalid.fetch_add(bad, Ordering::Relaxed);
+                            }
+                            px.push(st);
+                        }
+                        done.fetch_add((t.x1 - t.x0) as u64, Ordering::Relaxed);
+                    }
+                    Some(px)
+                })
+                .collect()
+        };
+        let pool =
+            if set.threads > 0 { rayon::ThreadPoolBuilder::new().num_threads(set.threads).build().ok() } else { None };
+        let finished = AtomicBool::new(false);
+        let caller = std::thread::current();
+        let (results, seconds) = std::thread::scope(|s| {
+            let handle = s.spawn(|| {
+                let r = match &pool {
+                    Some(p) => p.install(work),
+                    None => work(),
+                };
+                let seconds = start.elapsed().as_secs_f64();
+                finished.store(true, Ordering::Release);
+                caller.unpark();
+                (r, seconds)
+            });
+            while !finished.load(Ordering::Acquire) {
+                std::thread::park_timeout(Duration::from_millis(100));
+                if finished.load(Ordering::Acquire) {
+                    break;
+                }
+                if !cancel.load(Ordering::Relaxed) && !progress(done.load(Ordering::Relaxed) as f32 / total as f32) {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            }
+            handle.join().expect("render worker panicked")
+        });
+        if cancel.load(Ordering::Relaxed) || results.iter().any(Option::is_none) {
+            return Err(Cancelled);
+        }
+        for (t, px) in tiles.iter().zip(results) {
+            let mut px = px.into_iter().flatten();
+            for y in t.y0..t.y1 {
+                for x in t.x0..t.x1 {
+                    if let Some(st) = px.next() {
+                        self.pixels[(y * w + x) as usize] = st;
+                    }
+                }
+            }
+        }
+        self.samples += n;
+        self.invalid += invalid.load(Ordering::Relaxed);
+        self.seconds += seconds;
+        Ok(n)
+    }
+
+    /// The mean of the samples so far (black before the first round).
+    #[must_use]
+    pub fn framebuffer(&self) -> Framebuffer {
+        let mut fb = Framebuffer::new(self.width, self.height, self.set.aovs);
+        for (i, st) in self.pixels.iter().enumerate() {
+            let (c, a, al, n) = st.value(self.samples);
+            fb.color[i] = c;
+            fb.alpha[i] = a;
+            if let Some(v) = fb.albedo.as_mut() {
+                v[i] = al;
+            }
+            if let Some(v) = fb.normal.as_mut() {
+                v[i] = n;
+            }
+        }
+        let paths = self.width as u64 * self.height as u64 * self.samples as u64;
+        fb.stats = RenderStats {
+            seconds: self.seconds,
+            paths,
+            invalid: self.invalid,
+            paths_per_second: paths as f64 / self.seconds.max(1e-9),
+        };
+        fb
+    }
+}
+
 /// Renders `scene` (image size = the camera's). `progress(fraction)` is called on the calling
 /// thread about ten times a second and once at the end; returning `false` cancels the render.
 pub fn render(
@@ -432,99 +619,9 @@ pub fn render(
     set: &RenderSettings,
     progress: &mut dyn FnMut(f32) -> bool,
 ) -> Result<Framebuffer, Cancelled> {
-    use rayon::prelude::*;
-    let (w, h) = (scene.camera.width(), scene.camera.height());
-    let ts = set.tile_size.max(1);
-    let mut tiles = Vec::new();
-    for y0 in (0..h).step_by(ts as usize) {
-        for x0 in (0..w).step_by(ts as usize) {
-            tiles.push(Tile { x0, y0, x1: (x0 + ts).min(w), y1: (y0 + ts).min(h) });
-        }
-    }
-    let total_rows = tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>().max(1);
-    let done = AtomicU64::new(0);
-    let invalid = AtomicU64::new(0);
-    let cancel = AtomicBool::new(false);
-    let start = Instant::now();
-
-    let work = || -> Vec<Option<Vec<PixelValue>>> {
-        tiles
-            .par_iter()
-            .map(|t| {
-                let mut px = Vec::with_capacity(((t.x1 - t.x0) * (t.y1 - t.y0)) as usize);
-                for y in t.y0..t.y1 {
-                    if cancel.load(Ordering::Relaxed) {
-                        return None;
-                    }
-                    for x in t.x0..t.x1 {
-                        let (c, a, al, n, bad) = render_pixel(scene, set, x, y);
-                        if bad > 0 {
-                            invalid.fetch_add(bad, Ordering::Relaxed);
-                        }
-                        px.push((c, a, al, n));
-                    }
-                    done.fetch_add((t.x1 - t.x0) as u64, Ordering::Relaxed);
-                }
-                Some(px)
-            })
-            .collect()
-    };
-    let pool =
-        if set.threads > 0 { rayon::ThreadPoolBuilder::new().num_threads(set.threads).build().ok() } else { None };
-    let finished = AtomicBool::new(false);
-    let caller = std::thread::current();
-    let (results, seconds) = std::thread::scope(|s| {
-        let handle = s.spawn(|| {
-            let r = match &pool {
-                Some(p) => p.install(work),
-                None => work(),
-            };
-            let seconds = start.elapsed().as_secs_f64();
-            finished.store(true, Ordering::Release);
-            caller.unpark();
-            (r, seconds)
-        });
-        while !finished.load(Ordering::Acquire) {
-            std::thread::park_timeout(Duration::from_millis(100));
-            if finished.load(Ordering::Acquire) {
-                break;
-            }
-            if !cancel.load(Ordering::Relaxed) && !progress(done.load(Ordering::Relaxed) as f32 / total_rows as f32) {
-                cancel.store(true, Ordering::Relaxed);
-            }
-        }
-        handle.join().expect("render worker panicked")
-    });
-    if cancel.load(Ordering::Relaxed) {
-        return Err(Cancelled);
-    }
-    let mut fb = Framebuffer::new(w, h, set.aovs);
-    for (t, px) in tiles.iter().zip(results) {
-        let px = px.ok_or(Cancelled)?;
-        let mut k = 0;
-        for y in t.y0..t.y1 {
-            for x in t.x0..t.x1 {
-                let i = (y * w + x) as usize;
-                let (c, a, al, n) = px[k];
-                fb.color[i] = c;
-                fb.alpha[i] = a;
-                if let Some(v) = fb.albedo.as_mut() {
-                    v[i] = al;
-                }
-                if let Some(v) = fb.normal.as_mut() {
-                    v[i] = n;
-                }
-                k += 1;
-            }
-        }
-    }
-    let paths = w as u64 * h as u64 * set.spp as u64;
-    fb.stats = RenderStats {
-        seconds,
-        paths,
-        invalid: invalid.load(Ordering::Relaxed),
-        paths_per_second: paths as f64 / seconds.max(1e-9),
-    };
+    let mut p = Progressive::new(scene, set);
+    p.advance(scene, set.spp, progress)?;
+    let fb = p.framebuffer();
     progress(1.0);
     Ok(fb)
 }
