@@ -110,9 +110,87 @@ class LACQUER_OT_update_paint(bpy.types.Operator):
         if not mats:
             self.report({"ERROR"}, "Lacquer: no Lacquer material to update")
             return {"CANCELLED"}
+        failed = []
         for m in mats:
-            nodegroup.update_material(m)
-        self.report({"INFO"}, f"Lacquer: {len(mats)} material(s) updated")
+            try:
+                nodegroup.update_material(m)
+            except nodegroup.PaintRejected as e:
+                failed.append(f"\"{m.name}\": {e}")
+        if failed:
+            self.report({"ERROR"}, "Lacquer: " + "; ".join(failed))
+        self.report({"INFO"}, f"Lacquer: {len(mats) - len(failed)} material(s) updated")
+        return {"FINISHED"}
+
+
+def _out_of_spec(data: dict) -> list:
+    """Unknown parameters and values outside the core's ranges (`lacquer models`), which Blender's
+    properties would otherwise clamp silently."""
+    specs = {p["name"]: p for p in catalog.params()}
+    out = []
+    for k, v in data.items():
+        if k == "model":
+            continue
+        p = specs.get(k)
+        if p is None:
+            out.append(f"unknown parameter \"{k}\"")
+            continue
+        if p["kind"] in ("scalar", "color") and "min" in p:
+            values = v if isinstance(v, list) else [v]
+            if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in values):
+                out.append(f"{k}: {v!r} is not a number")
+            elif any(not (float(p["min"]) <= float(x) <= float(p["max"])) for x in values):
+                out.append(f"{k} = {v} is outside [{p['min']}, {p['max']}]")
+    return out
+
+
+class LACQUER_OT_set_paint_json(bpy.types.Operator):
+    """Set the paint from material JSON (from `lacquer presets`, a colleague or a script); invalid
+    JSON or a paint the core refuses is reported and the current paint kept"""
+
+    bl_idname = "lacquer.set_paint_json"
+    bl_label = "Set Lacquer Paint from JSON"
+    bl_options = {"REGISTER", "UNDO"}
+
+    json: StringProperty(name="JSON", description="coated_paint material JSON (only the parameters to change)")
+    material: StringProperty(name="Material", description="Material name (default: the active one)")
+
+    def execute(self, context):
+        import json
+
+        import lacquer
+
+        mat = bpy.data.materials.get(self.material) if self.material else getattr(context, "material", None)
+        if mat is None:
+            self.report({"ERROR"}, "Lacquer: no material")
+            return {"CANCELLED"}
+        settings = mat.lacquer
+        try:
+            data = json.loads(self.json)
+        except ValueError as e:
+            self.report({"ERROR"}, f"Lacquer: invalid JSON ({e}); \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        if not isinstance(data, dict) or data.get("model", catalog.MODEL) != catalog.MODEL:
+            self.report({"ERROR"}, f"Lacquer: not a {catalog.MODEL} material; \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        problems = _out_of_spec(data)
+        if problems:
+            self.report({"ERROR"}, f"Lacquer: {'; '.join(problems)}; \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        current = props.material_json(settings)
+        candidate = dict(current, **data)
+        try:
+            lacquer.Material(candidate)  # the core's validation: names, ranges, combinations
+        except lacquer.LacquerError as e:
+            self.report({"ERROR"}, f"Lacquer: {e}; \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        props.load_material_json(settings, candidate)
+        settings.modified = True
+        try:
+            nodegroup.update_material(mat)
+        except nodegroup.PaintRejected as e:
+            self.report({"ERROR"}, f"Lacquer: {e}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Lacquer: paint of \"{mat.name}\" set from JSON")
         return {"FINISHED"}
 
 
@@ -137,7 +215,8 @@ def _menu_assign(self, context):
     self.layout.operator_menu_enum("lacquer.assign_paint", "preset", text="Assign Lacquer Paint")
 
 
-classes = (LACQUER_OT_assign_paint, LACQUER_OT_apply_preset, LACQUER_OT_update_paint, LACQUER_MT_presets)
+classes = (LACQUER_OT_assign_paint, LACQUER_OT_apply_preset, LACQUER_OT_update_paint, LACQUER_OT_set_paint_json,
+           LACQUER_MT_presets)
 
 
 def register():

@@ -102,6 +102,12 @@ _SIGNATURES = {
     "lq_image_albedo": (c_void_p, [c_void_p]),
     "lq_image_normal": (c_void_p, [c_void_p]),
     "lq_image_free": (None, [c_void_p]),
+    "lq_render_session_new": (c_int32, [c_char_p, POINTER(c_void_p)]),
+    "lq_render_session_advance": (c_int32, [c_void_p, c_uint32, PROGRESS_FN, c_void_p, POINTER(c_uint32)]),
+    "lq_render_session_samples": (c_uint32, [c_void_p]),
+    "lq_render_session_target": (c_uint32, [c_void_p]),
+    "lq_render_session_image": (c_int32, [c_void_p, POINTER(c_void_p)]),
+    "lq_render_session_free": (None, [c_void_p]),
 }
 
 for _name, (_restype, _argtypes) in _SIGNATURES.items():
