@@ -177,7 +177,10 @@ pub unsafe extern "C" fn lq_render_session_target(session: *const lq_render_sess
 /// `session` is NULL or a live session; `out` is NULL or writable.
 #[no_mangle]
 #[must_use]
-pub unsafe extern "C" fn lq_render_session_image(session: *const lq_render_session, out: *mut *mut lq_image) -> lq_status {
+pub unsafe extern "C" fn lq_render_session_image(
+    session: *const lq_render_session,
+    out: *mut *mut lq_image,
+) -> lq_status {
     guard(|| {
         // SAFETY: the caller's contract above.
         let s = unsafe { session.as_ref() }.ok_or_else(|| Failure::null("session"))?;

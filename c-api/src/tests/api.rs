@@ -600,8 +600,10 @@ fn render_session_rounds_equal_lq_render() {
         lq_render_session_free(s);
         lq_render_session_free(std::ptr::null_mut());
         assert_eq!(lq_render_session_samples(std::ptr::null()), 0);
-        assert_eq!(lq_render_session_advance(std::ptr::null_mut(), 1, None, std::ptr::null_mut(), &mut added),
-                   lq_status::LQ_ERR_NULL);
+        assert_eq!(
+            lq_render_session_advance(std::ptr::null_mut(), 1, None, std::ptr::null_mut(), &mut added),
+            lq_status::LQ_ERR_NULL
+        );
         let bad = CString::new(r#"{"preset": "no_such_preset"}"#).unwrap();
         s = std::ptr::null_mut();
         assert_eq!(lq_render_session_new(bad.as_ptr(), &mut s), lq_status::LQ_ERR_INVALID_ARGUMENT);
