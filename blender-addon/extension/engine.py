@@ -44,6 +44,18 @@ def viewport_job(depsgraph, width: int, height: int, view_matrix, window_matrix,
     return job, temp
 
 
+def _break_requested(engine) -> bool:
+    """Esc (the engine's test_break); one place, so that scripts can stop renders too."""
+    return engine.test_break()
+
+
+def _native_floats(a) -> np.ndarray:
+    """A flat native-endian float32 copy: foreach_set refuses the ctypes arrays' explicit "<f"."""
+    out = np.empty(a.size, np.float32)
+    out[:] = a.reshape(-1)
+    return out
+
+
 class LacquerRenderEngine(bpy.types.RenderEngine):
     bl_idname = "LACQUER"
     bl_label = "Lacquer"
@@ -101,7 +113,7 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
                 elapsed = time.perf_counter() - start
                 self.update_stats("", f"Lacquer: path tracing {width}×{height}, {int(done)}/{spp} spp, "
                                       f"{elapsed:.1f} s")
-                return not self.test_break()
+                return not _break_requested(self)
 
             result = self.begin_result(0, 0, width, height)
             layer = result.layers[0]
@@ -119,7 +131,7 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
                     written = self._write(layer, session.image(), scene)
                     self.update_result(result)
                     shown += 1
-                    if self.test_break():
+                    if _break_requested(self):
                         cancelled = True
                         break
             finally:
@@ -155,7 +167,7 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
             rgba = rgba.copy()
             rgba[..., 3] = 1.0
         # Native-endian float buffers: foreach_set refuses the ctypes array's explicit "<f".
-        layer.passes["Combined"].rect.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).reshape(-1))
+        layer.passes["Combined"].rect.foreach_set(_native_floats(rgba))
         written = ["Combined"]
         extra = {"Denoising Albedo": img.get("albedo"), "Denoising Normal": img.get("normal")}
         for name, data in extra.items():
@@ -164,7 +176,7 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
                 continue
             if name == "Denoising Normal":
                 data = export.normals_to_blender(data)
-            layer.passes[p].rect.foreach_set(np.ascontiguousarray(data[::-1], dtype=np.float32).reshape(-1))
+            layer.passes[p].rect.foreach_set(_native_floats(data[::-1]))
             written.append(name)
         return written
 

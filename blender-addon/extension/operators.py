@@ -122,27 +122,6 @@ class LACQUER_OT_update_paint(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _out_of_spec(data: dict) -> list:
-    """Unknown parameters and values outside the core's ranges (`lacquer models`), which Blender's
-    properties would otherwise clamp silently."""
-    specs = {p["name"]: p for p in catalog.params()}
-    out = []
-    for k, v in data.items():
-        if k == "model":
-            continue
-        p = specs.get(k)
-        if p is None:
-            out.append(f"unknown parameter \"{k}\"")
-            continue
-        if p["kind"] in ("scalar", "color") and "min" in p:
-            values = v if isinstance(v, list) else [v]
-            if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in values):
-                out.append(f"{k}: {v!r} is not a number")
-            elif any(not (float(p["min"]) <= float(x) <= float(p["max"])) for x in values):
-                out.append(f"{k} = {v} is outside [{p['min']}, {p['max']}]")
-    return out
-
-
 class LACQUER_OT_set_paint_json(bpy.types.Operator):
     """Set the paint from material JSON (from `lacquer presets`, a colleague or a script); invalid
     JSON or a paint the core refuses is reported and the current paint kept"""
@@ -171,10 +150,6 @@ class LACQUER_OT_set_paint_json(bpy.types.Operator):
             return {"CANCELLED"}
         if not isinstance(data, dict) or data.get("model", catalog.MODEL) != catalog.MODEL:
             self.report({"ERROR"}, f"Lacquer: not a {catalog.MODEL} material; \"{mat.name}\" kept its paint")
-            return {"CANCELLED"}
-        problems = _out_of_spec(data)
-        if problems:
-            self.report({"ERROR"}, f"Lacquer: {'; '.join(problems)}; \"{mat.name}\" kept its paint")
             return {"CANCELLED"}
         current = props.material_json(settings)
         candidate = dict(current, **data)

@@ -74,7 +74,9 @@ class ViewportRender:
                         session.advance(n, progress=lambda _f: not self._stop.is_set())
                     except lacquer.CancelledError:
                         return
-                    rgba = np.ascontiguousarray(session.image()["rgba"][::-1], dtype=np.float32)
+                    img = session.image()["rgba"][::-1]
+                    rgba = np.empty(img.shape, np.float32)
+                    rgba[:] = img
                     with self._lock:
                         self._image = (rgba, session.samples)
                         self.version += 1
@@ -89,6 +91,7 @@ class ViewportRender:
 def display_buffer(rgba: np.ndarray) -> np.ndarray:
     """The flat float32 RGBA buffer (bottom row first) that the engine uploads to a GPU texture:
     alpha forced to 1 (the viewport shows the film opaque)."""
-    out = np.array(rgba, dtype=np.float32, copy=True)
+    out = np.empty(rgba.shape, np.float32)  # native endian (the ctypes arrays say "<f")
+    out[:] = rgba
     out[..., 3] = 1.0
     return out.reshape(-1)

@@ -605,14 +605,15 @@ def engine_smoke(out: str, size: int) -> dict:
     disable_compositor(scene)
     # Esc: test_break answering True from the start; a 4096-spp render must stop at once.
     scene.lacquer.samples = 4096
-    original = engine.LacquerRenderEngine.test_break
-    engine.LacquerRenderEngine.test_break = lambda self: True
+    # (Esc → test_break is Blender's; the engine asks through engine._break_requested)
+    original = engine._break_requested
+    engine._break_requested = lambda eng: True
     try:
         t = time.perf_counter()
         bpy.ops.render.render(write_still=False)
         rep["cancel"] = dict(engine.LAST_RENDER, wall_seconds=time.perf_counter() - t)
     finally:
-        engine.LacquerRenderEngine.test_break = original
+        engine._break_requested = original
     scene.lacquer.samples = 16
     # The viewport: the job a viewport looking through the scene camera makes, rendered by the
     # worker in stages; the buffer view_draw uploads.
@@ -762,7 +763,7 @@ def editing_smoke(out: str, size: int) -> dict:
     # 5. A linked (library) old group is left untouched, with a message.
     g["lacquer_version"] = nodegroup.NODE_GROUP_VERSION - 1
     lib_path = os.path.join(out, "paint_library.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=lib_path)
+    bpy.data.libraries.write(lib_path, {bpy.data.materials[name]}, fake_user=True)
     scene = fresh_scene(size, 4)
     with bpy.data.libraries.load(lib_path, link=True) as (src, dst):
         dst.materials = [name]
