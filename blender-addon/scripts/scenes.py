@@ -599,6 +599,9 @@ def engine_smoke(out: str, size: int) -> dict:
     # The Denoise node on LACQUER's passes (noisy input at 4 spp).
     scene.lacquer.samples = 4
     r = render(scene, "LACQUER", os.path.join(out, "engine_noisy.exr"))
+    scene.lacquer.samples = 256
+    render(scene, "LACQUER", os.path.join(out, "engine_reference.exr"))
+    scene.lacquer.samples = 4
     rep["rl_outputs"] = compositor_denoise(scene)
     r = render(scene, "LACQUER", os.path.join(out, "engine_denoised.exr"))
     rep["denoise_render"] = dict(engine.LAST_RENDER, seconds_total=r["seconds"])

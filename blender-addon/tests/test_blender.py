@@ -403,8 +403,8 @@ def channel_group(chans, px, layer):
 
 def test_compositor_denoise_node_works_on_lacquer_passes(smokes):
     """The Render Layers node offers LACQUER's passes; Render Layers → Denoise (Image, Normal,
-    Albedo) → output renders pixels: finite, the same mean as the noisy 4-spp image, and
-    smoother (variance around the 9×9 local mean at least 2× lower)."""
+    Albedo) → output renders pixels: finite, the same mean as the noisy 4-spp image, and closer
+    to a 256-spp reference than the noisy image is."""
     rep = smokes["report"]["engine"]
     assert "Denoising Albedo" in rep["rl_outputs"] and "Denoising Normal" in rep["rl_outputs"], rep["rl_outputs"]
     d = smokes["dir"]
@@ -412,12 +412,15 @@ def test_compositor_denoise_node_works_on_lacquer_passes(smokes):
     mask = noisy[..., 3] > 0.999
     assert np.isfinite(den).all()
     mn, md = noisy[mask][:, :3].mean(axis=0), den[mask][:, :3].mean(axis=0)
-    vn, vd = _sparkle_variance(noisy)[0], _sparkle_variance(den)[0]
+    ref = read_exr(d / "engine_reference.exr")
+    rmse = lambda img: float(np.sqrt(((img[mask][:, :3] - ref[mask][:, :3]) ** 2).mean()))  # noqa: E731
     FIGURES["denoise"] = {"noisy_mean": mn.round(4).tolist(), "denoised_mean": md.round(4).tolist(),
-                          "noisy_local_variance": vn, "denoised_local_variance": vd}
+                          "rmse_noisy": rmse(noisy), "rmse_denoised": rmse(den)}
+    print(f"\nDenoise node on LACQUER 4 spp: RMSE vs 256 spp {rmse(noisy):.4f} → {rmse(den):.4f}")
     assert md.min() > 0.0
-    assert np.abs(md - mn).max() / mn.max() < 0.1, FIGURES["denoise"]
-    assert vd < 0.5 * vn, FIGURES["denoise"]
+    # Measured on bpy 4.5.15: means within 0.7 %.
+    assert np.abs(md - mn).max() / mn.max() < 0.05, FIGURES["denoise"]
+    assert rmse(den) < rmse(noisy), FIGURES["denoise"]
 
 
 def test_esc_cancels_a_lacquer_render_promptly(smokes):
