@@ -551,11 +551,13 @@ def _stats(path):
     return px.reshape(h, w, -1)
 
 
-def compositor_denoise(scene):
-    """Render Layers (Image, Denoising Normal, Denoising Albedo) → Denoise → the compositor's
-    output (Blender 4.5: scene.node_tree and a Composite node; 5.0: a compositor node group)."""
+def compositor(scene, source: str, denoise: bool):
+    """Render Layers → (Denoise with Image, Denoising Normal, Denoising Albedo) → the
+    compositor's output (Blender 4.5: scene.node_tree and a Composite node; 5.0: a compositor
+    node group), or the pass ``source`` straight to the output. Returns the Render Layers
+    node's output names."""
     if bpy.app.version >= (5, 0, 0):
-        tree = bpy.data.node_groups.new("Lacquer denoise", "CompositorNodeTree")
+        tree = bpy.data.node_groups.new("Lacquer compositor", "CompositorNodeTree")
         tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
         scene.compositing_node_group = tree
         out = tree.nodes.new("NodeGroupOutput")
@@ -566,12 +568,15 @@ def compositor_denoise(scene):
         out = tree.nodes.new("CompositorNodeComposite")
     rl = tree.nodes.new("CompositorNodeRLayers")
     rl.scene = scene
-    dn = tree.nodes.new("CompositorNodeDenoise")
     outputs = [o.name for o in rl.outputs]
-    tree.links.new(rl.outputs["Image"], dn.inputs["Image"])
-    tree.links.new(rl.outputs["Denoising Normal"], dn.inputs["Normal"])
-    tree.links.new(rl.outputs["Denoising Albedo"], dn.inputs["Albedo"])
-    tree.links.new(dn.outputs[0], out.inputs[0])
+    if denoise:
+        dn = tree.nodes.new("CompositorNodeDenoise")
+        tree.links.new(rl.outputs["Image"], dn.inputs["Image"])
+        tree.links.new(rl.outputs["Denoising Normal"], dn.inputs["Normal"])
+        tree.links.new(rl.outputs["Denoising Albedo"], dn.inputs["Albedo"])
+        tree.links.new(dn.outputs[0], out.inputs[0])
+    else:
+        tree.links.new(rl.outputs[source], out.inputs[0])
     return outputs
 
 
@@ -592,20 +597,27 @@ def engine_smoke(out: str, size: int) -> dict:
     rep: dict = {}
     scene, mats = scene_compare(size, 16)
     # Progressive render with passes, saved as a multilayer EXR.
-    scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
-    r = render(scene, "LACQUER", os.path.join(out, "engine_passes.exr"))
+    r = render(scene, "LACQUER", os.path.join(out, "engine_combined.exr"))
     rep["passes_render"] = dict(engine.LAST_RENDER, seconds_total=r["seconds"])
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    # The Denoise node on LACQUER's passes (noisy input at 4 spp).
+    # Each pass through the compositor to an EXR (Blender 5.0.1's multilayer EXR keeps only
+    # Combined of a Python engine's result, 4.5 keeps them all: the compositor works in both).
+    for name, tag in (("Denoising Albedo", "albedo"), ("Denoising Normal", "normal")):
+        compositor(scene, name, denoise=False)
+        render(scene, "LACQUER", os.path.join(out, f"engine_{tag}.exr"))
+    disable_compositor(scene)
+    # The Denoise node on LACQUER's passes (noisy input at 4 spp), sparkle off: per-pixel flake
+    # glints are image detail a denoiser should not be judged on; the MC noise of the mean lobe is.
     scene.lacquer.samples = 4
+    scene.lacquer.sparkle = False
     r = render(scene, "LACQUER", os.path.join(out, "engine_noisy.exr"))
     scene.lacquer.samples = 256
     render(scene, "LACQUER", os.path.join(out, "engine_reference.exr"))
     scene.lacquer.samples = 4
-    rep["rl_outputs"] = compositor_denoise(scene)
+    rep["rl_outputs"] = compositor(scene, "Image", denoise=True)
     r = render(scene, "LACQUER", os.path.join(out, "engine_denoised.exr"))
     rep["denoise_render"] = dict(engine.LAST_RENDER, seconds_total=r["seconds"])
     disable_compositor(scene)
+    scene.lacquer.sparkle = True
     # Esc: test_break answering True from the start; a 4096-spp render must stop at once.
     scene.lacquer.samples = 4096
     # (Esc → test_break is Blender's; the engine asks through engine._break_requested)

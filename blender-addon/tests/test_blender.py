@@ -367,44 +367,35 @@ def smokes():
 
 
 def test_lacquer_renders_progressively_with_denoising_passes(smokes):
-    """A 16-spp LACQUER render shows its image in rounds (update_result 1, 1, 2, 4, 4, 4 spp) and
-    writes Denoising Albedo and Denoising Normal passes: in the multilayer EXR, non-trivial
-    (albedo in (0, 1] on the sphere, unit normals)."""
+    """A 16-spp LACQUER render shows its image in rounds (update_result after 1, 1, 2, 4, 4, 4
+    spp) and fills Denoising Albedo and Denoising Normal, read back through the compositor
+    (Render Layers → output): albedo in [0, 1] on the sphere, normals unit and facing the camera."""
     r = smokes["report"]["engine"]["passes_render"]
     assert r["rounds"] > 1 and r["spp"] == r["target"] == 16 and not r["cancelled"], r
     assert r["passes"] == ["Combined", "Denoising Albedo", "Denoising Normal"], r
-    buf = oiio.ImageBuf(str(smokes["dir"] / "engine_passes.exr"))
-    assert not buf.has_error, buf.geterror()
-    chans = list(buf.spec().channelnames)
-    px = buf.get_pixels(oiio.FLOAT)
-    albedo = channel_group(chans, px, "Denoising Albedo")
-    normal = channel_group(chans, px, "Denoising Normal")
-    alpha = px[..., [i for i, c in enumerate(chans) if c.endswith("Combined.A")][0]]
+    d = smokes["dir"]
+    alpha = read_exr(d / "engine_combined.exr")[..., 3]
     hit = alpha > 0.999
+    albedo, normal = read_exr(d / "engine_albedo.exr")[..., :3], read_exr(d / "engine_normal.exr")[..., :3]
     assert hit.sum() > 100
     a = albedo[hit]
     assert np.isfinite(a).all() and a.min() >= 0.0 and 0.05 < a.mean() <= 1.0, a.mean(axis=0)
+    assert (alpha == 0.0).sum() > 100 and albedo[alpha == 0.0].max() == 0.0  # nothing where no surface is seen
     n = normal[hit]
     lengths = np.linalg.norm(n, axis=1)
-    # First-hit normals averaged over 16 jittered samples: unit up to the pixel's curvature.
+    # The core normalises the pixel's mean first-hit normal: unit up to float rounding.
     assert np.abs(lengths - 1.0).max() < 1e-3, lengths.min()
-    # The camera looks along +y (Blender's z-up): visible normals face it (n·(0,-1,0) > 0).
+    # The camera looks along +y (Blender's z-up): visible normals face it (n_y < 0).
     assert (n[:, 1] < 0.05).mean() > 0.99
     FIGURES["engine_passes"] = {"rounds": r["rounds"], "albedo_mean": a.mean(axis=0).round(4).tolist(),
+                                "normal_length_dev": float(np.abs(lengths - 1.0).max()),
                                 "seconds": round(r["seconds"], 3)}
-
-
-def channel_group(chans, px, layer):
-    """The R G B (or X Y Z) channels of a multilayer EXR pass, e.g. ViewLayer.Denoising Albedo.R."""
-    idx = [i for i, c in enumerate(chans) if f".{layer}." in f".{c}"]
-    assert len(idx) == 3, (layer, chans)
-    return px[..., idx]
 
 
 def test_compositor_denoise_node_works_on_lacquer_passes(smokes):
     """The Render Layers node offers LACQUER's passes; Render Layers → Denoise (Image, Normal,
-    Albedo) → output renders pixels: finite, the same mean as the noisy 4-spp image, and closer
-    to a 256-spp reference than the noisy image is."""
+    Albedo) → output renders pixels (sparkle off: flake glints are detail, not noise): finite,
+    the same mean as the noisy 4-spp image, and much closer to a 256-spp reference."""
     rep = smokes["report"]["engine"]
     assert "Denoising Albedo" in rep["rl_outputs"] and "Denoising Normal" in rep["rl_outputs"], rep["rl_outputs"]
     d = smokes["dir"]
@@ -413,14 +404,21 @@ def test_compositor_denoise_node_works_on_lacquer_passes(smokes):
     assert np.isfinite(den).all()
     mn, md = noisy[mask][:, :3].mean(axis=0), den[mask][:, :3].mean(axis=0)
     ref = read_exr(d / "engine_reference.exr")
-    rmse = lambda img: float(np.sqrt(((img[mask][:, :3] - ref[mask][:, :3]) ** 2).mean()))  # noqa: E731
+
+    def rmse(img):
+        # On the display's range (Standard view clips at 1): the highlight's fireflies, which
+        # no denoiser removes at 4 spp, would otherwise be the whole error.
+        c = np.clip(img[mask][:, :3], 0.0, 1.0) - np.clip(ref[mask][:, :3], 0.0, 1.0)
+        return float(np.sqrt((c ** 2).mean()))
+
     FIGURES["denoise"] = {"noisy_mean": mn.round(4).tolist(), "denoised_mean": md.round(4).tolist(),
                           "rmse_noisy": rmse(noisy), "rmse_denoised": rmse(den)}
     print(f"\nDenoise node on LACQUER 4 spp: RMSE vs 256 spp {rmse(noisy):.4f} → {rmse(den):.4f}")
     assert md.min() > 0.0
     # Measured on bpy 4.5.15: means within 0.7 %.
     assert np.abs(md - mn).max() / mn.max() < 0.05, FIGURES["denoise"]
-    assert rmse(den) < rmse(noisy), FIGURES["denoise"]
+    # Measured on bpy 5.0.1: 0.067 → 0.029 (ratio 0.43).
+    assert rmse(den) < 0.7 * rmse(noisy), FIGURES["denoise"]
 
 
 def test_esc_cancels_a_lacquer_render_promptly(smokes):
