@@ -13,12 +13,18 @@ def _preset_items(self, context):
 
 
 def apply_preset(mat, name: str):
-    """Makes `mat` a Lacquer paint with the preset's parameters and the fitted node group."""
+    """Makes `mat` a Lacquer paint with the preset's parameters and the fitted node group (in
+    the UI the fit runs on the worker thread and is applied when done; returns None then)."""
     settings = mat.lacquer
     props.load_material_json(settings, catalog.preset(name))
     settings.preset = name
     settings.modified = False
     settings.enabled = True
+    if props.refits_async():
+        # In the UI: the node group now, its fitted inputs when the worker thread has them.
+        nodegroup.group_node(mat)
+        props._start_refit(mat)
+        return None
     return nodegroup.update_material(mat)
 
 

@@ -709,6 +709,15 @@ def editing_smoke(out: str, size: int) -> dict:
                         "coverage_applied": cov(), "coverage_expected": fitted(3.7), "finished": finished,
                         "main_thread": threading.current_thread().name,
                         "refit": props.LAST_REFITS.get(mat.name)}
+        # Applying a preset in the UI fits on the worker thread too.
+        props.LAST_REFITS.clear()
+        t = time.perf_counter()
+        bpy.ops.lacquer.apply_preset(preset="gold_flake_5", material=mat.name)
+        op_seconds = time.perf_counter() - t
+        finished = props.wait_for_refits(60)
+        rep["async_preset"] = {"op_seconds": op_seconds, "finished": finished, "coverage": cov(),
+                               "expected": lacquer.fit_node_group("gold_flake_5")["inputs"]["Flake Coverage"],
+                               "refit": props.LAST_REFITS.get(mat.name)}
     finally:
         props.ASYNC_REFITS = None
     # 2. Keyframed paint parameters: frame changes refit the node group.

@@ -383,8 +383,9 @@ def test_lacquer_renders_progressively_with_denoising_passes(smokes):
     assert (alpha == 0.0).sum() > 100 and albedo[alpha == 0.0].max() == 0.0  # nothing where no surface is seen
     n = normal[hit]
     lengths = np.linalg.norm(n, axis=1)
-    # The core normalises the pixel's mean first-hit normal: unit up to float rounding.
-    assert np.abs(lengths - 1.0).max() < 1e-3, lengths.min()
+    # The core normalises the pixel's mean first-hit normal: unit up to float rounding
+    # (measured 6e-8 on bpy 4.5.15 and 5.0.1).
+    assert np.abs(lengths - 1.0).max() < 1e-5, lengths.min()
     # The camera looks along +y (Blender's z-up): visible normals face it (n_y < 0).
     assert (n[:, 1] < 0.05).mean() > 0.99
     FIGURES["engine_passes"] = {"rounds": r["rounds"], "albedo_mean": a.mean(axis=0).round(4).tolist(),
@@ -415,7 +416,7 @@ def test_compositor_denoise_node_works_on_lacquer_passes(smokes):
                           "rmse_noisy": rmse(noisy), "rmse_denoised": rmse(den)}
     print(f"\nDenoise node on LACQUER 4 spp: RMSE vs 256 spp {rmse(noisy):.4f} → {rmse(den):.4f}")
     assert md.min() > 0.0
-    # Measured on bpy 4.5.15: means within 0.7 %.
+    # Measured (bpy 4.5.15 and 5.0.1): means within 0.9 % (blue); a denoiser moves the mean little.
     assert np.abs(md - mn).max() / mn.max() < 0.05, FIGURES["denoise"]
     # Measured on bpy 5.0.1: 0.067 → 0.029 (ratio 0.43).
     assert rmse(den) < 0.7 * rmse(noisy), FIGURES["denoise"]
@@ -452,13 +453,18 @@ def test_viewport_renders_low_resolution_first_then_refines(smokes):
 
 def test_refit_runs_off_the_main_thread_and_applies_on_completion(smokes):
     """An edit returns before the fit is done; the fit runs on the "lacquer-refit" thread; the
-    timer applies the result (the coverage the core fits for the new density)."""
+    timer applies the result (the coverage the core fits for the new density). Applying a
+    preset fits on the worker thread too."""
     a = smokes["report"]["editing"]["async"]
     FIGURES["async_refit"] = a
     assert a["finished"] and a["refit"]["thread"] == "lacquer-refit" != a["main_thread"], a
     assert a["coverage_right_after"] == a["coverage_before"], a  # not applied synchronously
     assert a["edit_seconds"] < 0.5 * a["refit"]["seconds"] or a["edit_seconds"] < 0.01, a
     assert abs(a["coverage_applied"] - a["coverage_expected"]) < 1e-6, a
+    p = smokes["report"]["editing"]["async_preset"]
+    FIGURES["async_preset"] = p
+    assert p["finished"] and p["refit"]["thread"] == "lacquer-refit", p
+    assert abs(p["coverage"] - p["expected"]) < 1e-6, p
 
 
 def test_keyframed_paint_parameters_refit_on_frame_change(smokes):
