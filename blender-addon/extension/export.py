@@ -407,13 +407,33 @@ def camera_desc(cam_obj, width: int, height: int, report: Report) -> dict:
 # --- the whole scene ---------------------------------------------------------------------------
 
 
-def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: list) -> dict:
-    """The scene of an evaluated depsgraph as the renderer's JSON scene."""
+def view_camera_desc(view_matrix, window_matrix) -> dict:
+    """A 3D viewport's view as the renderer's camera: the inverse view matrix places it, the
+    projection matrix gives the vertical field of view (perspective only)."""
+    inv = view_matrix.inverted()
+    pos = inv.to_translation()
+    fwd = (inv.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()
+    up = (inv.to_3x3() @ Vector((0.0, 1.0, 0.0))).normalized()
+    vhalf = math.atan(1.0 / float(window_matrix[1][1]))
+    return {"position": _point(pos), "look_at": _point(pos + fwd), "up": _dir(up), "fov_deg": math.degrees(2 * vhalf)}
+
+
+def normals_to_blender(n):
+    """World normals from the renderer's y-up frame back to Blender's z-up (the inverse of Y_UP)."""
+    out = np.empty_like(n)
+    out[..., 0], out[..., 1], out[..., 2] = n[..., 0], -n[..., 2], n[..., 1]
+    return out
+
+
+def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: list, camera: dict | None = None) -> dict:
+    """The scene of an evaluated depsgraph as the renderer's JSON scene (``camera``: a camera
+    description to use instead of the scene's camera, e.g. a viewport's)."""
     scene = depsgraph.scene
     cam_obj = scene.camera
-    if cam_obj is None:
+    if cam_obj is None and camera is None:
         raise ValueError("the scene has no camera")
-    cam_obj = cam_obj.evaluated_get(depsgraph)
+    if cam_obj is not None:
+        cam_obj = cam_obj.evaluated_get(depsgraph)
     meshes: dict = {}
     objects: list = []
     lights: list = []
@@ -485,8 +505,8 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
         report.warn("motion blur ignored")
     if not objects:
         report.warn("the scene has no visible geometry")
-    return {"camera": camera_desc(cam_obj, width, height, report), "meshes": meshes, "objects": objects,
-            "lights": lights}
+    return {"camera": camera if camera is not None else camera_desc(cam_obj, width, height, report),
+            "meshes": meshes, "objects": objects, "lights": lights}
 
 
 def render_size(scene) -> tuple[int, int]:
@@ -495,13 +515,14 @@ def render_size(scene) -> tuple[int, int]:
         max(1, int(r.resolution_y * r.resolution_percentage / 100))
 
 
-def job(depsgraph, report: Report, temp_files: list, preview: bool = False) -> dict:
-    """The whole render job for the depsgraph's scene."""
+def job(depsgraph, report: Report, temp_files: list, preview: bool = False, size: tuple | None = None,
+        camera: dict | None = None) -> dict:
+    """The whole render job for the depsgraph's scene (``size``, ``camera``: a viewport's)."""
     scene = depsgraph.scene
-    width, height = render_size(scene)
+    width, height = size if size is not None else render_size(scene)
     s = scene.lacquer
     return {
-        "scene": scene_desc(depsgraph, width, height, report, temp_files),
+        "scene": scene_desc(depsgraph, width, height, report, temp_files, camera=camera),
         "width": width,
         "height": height,
         "spp": int(s.preview_samples if preview else s.samples),

@@ -294,9 +294,18 @@ def _build(group):
     b.feed(go.inputs[0], mix2.outputs[0])
 
 
+def _local_group():
+    """The file's own (not linked) `Lacquer Coated Paint` group, or None."""
+    for g in bpy.data.node_groups:
+        if g.name == GROUP_NAME and g.library is None:
+            return g
+    return None
+
+
 def ensure_node_group():
-    """The file's `Lacquer Coated Paint` group, built or rebuilt in place if older than this add-on's."""
-    group = bpy.data.node_groups.get(GROUP_NAME)
+    """The file's `Lacquer Coated Paint` group, built or rebuilt in place if older than this add-on's.
+    Linked (library) groups are never edited: a local group is made instead."""
+    group = _local_group()
     if group is not None and group.bl_idname == "ShaderNodeTree" and group.get("lacquer_version") == NODE_GROUP_VERSION:
         return group
     if group is None or group.bl_idname != "ShaderNodeTree":
@@ -310,6 +319,46 @@ def ensure_node_group():
     group["lacquer_version"] = NODE_GROUP_VERSION
     group.use_fake_user = False
     return group
+
+
+def is_stale(group) -> bool:
+    """A Lacquer node group from another version of the extension."""
+    return group is not None and group.get("lacquer_version") != NODE_GROUP_VERSION
+
+
+def linked_message(group) -> str:
+    """What the panel and the console say about a linked group that is not this version's."""
+    lib = group.library.filepath if group.library is not None else "?"
+    return (f"node group \"{group.name}\" is linked from {lib} (version {group.get('lacquer_version')}, "
+            f"this extension makes {NODE_GROUP_VERSION}): left untouched; open that file and press "
+            f"Update there, or make the group local")
+
+
+def upgrade_file() -> dict:
+    """Upgrades the open file's old Lacquer node groups in place (the load_post handler) and
+    refits every local Lacquer material, whose group inputs a rebuild resets; linked groups are
+    left untouched with a message. Returns ``{"upgraded": [...], "linked": [messages], "refit": n}``."""
+    out = {"upgraded": [], "linked": [], "refit": 0, "errors": []}
+    groups = [g for g in bpy.data.node_groups if g.name.startswith(GROUP_NAME) and "lacquer_version" in g]
+    for g in groups:
+        if not is_stale(g):
+            continue
+        if g.library is not None:
+            out["linked"].append(linked_message(g))
+            continue
+        out["upgraded"].append(f"{g.name} {g.get('lacquer_version')} -> {NODE_GROUP_VERSION}")
+    if out["upgraded"]:
+        ensure_node_group()
+        for m in bpy.data.materials:
+            if m.library is None and m.lacquer.enabled:
+                try:
+                    update_material(m)
+                    out["refit"] += 1
+                except Exception as e:  # noqa: BLE001  (one bad material must not stop the others)
+                    out["errors"].append(f"{m.name}: {e}")
+    for line in out["linked"] + out["errors"]:
+        print(f"Lacquer: {line}")
+    return out
 
 
 def _material_output(tree):
@@ -335,20 +384,53 @@ def group_node(mat, create=True):
         node.label = "Lacquer Coated Paint"
         node.location = (0, 0)
         node.width = 240
-    group = ensure_node_group()
-    if node.node_tree is not group:
-        node.node_tree = group
+    current = node.node_tree
+    if current is not None and current.library is not None and current.name == GROUP_NAME:
+        pass  # a linked group: never replaced or edited (the panel says when it is stale)
+    else:
+        group = ensure_node_group()
+        if current is not group:
+            node.node_tree = group
     out = _material_output(tree)
     if not any(link.from_node == node for link in out.inputs["Surface"].links):
         tree.links.new(node.outputs[0], out.inputs["Surface"])
     return node
 
 
+class PaintRejected(ValueError):
+    """A paint edit the core refused; the previous valid paint was kept."""
+
+
 def update_material(mat):
-    """Refits the node group's inputs from the material's paint parameters and writes them."""
+    """Refits the node group's inputs from the material's paint parameters and writes them.
+    A paint the core refuses raises :class:`PaintRejected` after restoring the previous valid
+    paint (its parameters, node group inputs and so what LACQUER renders)."""
+    material = props.material_json(mat.lacquer)
+    try:
+        result = fitmod.fit(material)
+    except fitmod.FitUnavailable:
+        raise
+    except Exception as e:  # noqa: BLE001  (the core's error, shown to the artist)
+        return apply_fit(mat, material, None, e)
+    return apply_fit(mat, material, result, None)
+
+
+def apply_fit(mat, material: dict, result, error):
+    """Writes a fit ``(inputs, error, source)`` of ``material`` to the material, or, when the fit
+    failed with ``error``, restores the last valid paint and raises :class:`PaintRejected`."""
     settings = mat.lacquer
-    material = props.material_json(settings)
-    inputs, error, source = fitmod.fit(material)
+    if error is not None:
+        previous = settings.fit_material
+        if previous:
+            props.load_material_json(settings, json.loads(previous))
+            kept = "kept the previous paint"
+        else:
+            kept = "no previous paint to keep"
+        settings.fit_message = f"rejected: {error} ({kept})"
+        print(f"Lacquer: material \"{mat.name}\": {settings.fit_message}")
+        raise PaintRejected(settings.fit_message) from error
+    inputs, fit_error, source = result
+    inputs = dict(inputs)
     inputs.setdefault("Flake Size", material["flake_size_um"])
     inputs.setdefault("Sparkle", 1.0 if material.get("sparkle", True) else 0.0)
     inputs["Pearl Size"] = material["pearl_size_um"]
@@ -363,9 +445,9 @@ def update_material(mat):
             sock.default_value = float(value)
     settings.enabled = True
     settings.fit_inputs = json.dumps(inputs, sort_keys=True)
-    settings.fit_error = json.dumps(error, sort_keys=True)
+    settings.fit_error = json.dumps(fit_error, sort_keys=True)
     settings.fit_material = json.dumps(material, sort_keys=True)
     settings.fit_message = source
     pig = inputs.get("Pigment Color", material["base_color"])
     mat.diffuse_color = (*[float(v) for v in pig[:3]], 1.0)  # solid-mode viewport colour
-    return inputs, error
+    return inputs, fit_error

@@ -13,12 +13,18 @@ def _preset_items(self, context):
 
 
 def apply_preset(mat, name: str):
-    """Makes `mat` a Lacquer paint with the preset's parameters and the fitted node group."""
+    """Makes `mat` a Lacquer paint with the preset's parameters and the fitted node group (in
+    the UI the fit runs on the worker thread and is applied when done; returns None then)."""
     settings = mat.lacquer
     props.load_material_json(settings, catalog.preset(name))
     settings.preset = name
     settings.modified = False
     settings.enabled = True
+    if props.refits_async():
+        # In the UI: the node group now, its fitted inputs when the worker thread has them.
+        nodegroup.group_node(mat)
+        props._start_refit(mat)
+        return None
     return nodegroup.update_material(mat)
 
 
@@ -110,9 +116,62 @@ class LACQUER_OT_update_paint(bpy.types.Operator):
         if not mats:
             self.report({"ERROR"}, "Lacquer: no Lacquer material to update")
             return {"CANCELLED"}
+        failed = []
         for m in mats:
-            nodegroup.update_material(m)
-        self.report({"INFO"}, f"Lacquer: {len(mats)} material(s) updated")
+            try:
+                nodegroup.update_material(m)
+            except nodegroup.PaintRejected as e:
+                failed.append(f"\"{m.name}\": {e}")
+        if failed:
+            self.report({"ERROR"}, "Lacquer: " + "; ".join(failed))
+        self.report({"INFO"}, f"Lacquer: {len(mats) - len(failed)} material(s) updated")
+        return {"FINISHED"}
+
+
+class LACQUER_OT_set_paint_json(bpy.types.Operator):
+    """Set the paint from material JSON (from `lacquer presets`, a colleague or a script); invalid
+    JSON or a paint the core refuses is reported and the current paint kept"""
+
+    bl_idname = "lacquer.set_paint_json"
+    bl_label = "Set Lacquer Paint from JSON"
+    bl_options = {"REGISTER", "UNDO"}
+
+    json: StringProperty(name="JSON", description="coated_paint material JSON (only the parameters to change)")
+    material: StringProperty(name="Material", description="Material name (default: the active one)")
+
+    def execute(self, context):
+        import json
+
+        import lacquer
+
+        mat = bpy.data.materials.get(self.material) if self.material else getattr(context, "material", None)
+        if mat is None:
+            self.report({"ERROR"}, "Lacquer: no material")
+            return {"CANCELLED"}
+        settings = mat.lacquer
+        try:
+            data = json.loads(self.json)
+        except ValueError as e:
+            self.report({"ERROR"}, f"Lacquer: invalid JSON ({e}); \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        if not isinstance(data, dict) or data.get("model", catalog.MODEL) != catalog.MODEL:
+            self.report({"ERROR"}, f"Lacquer: not a {catalog.MODEL} material; \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        current = props.material_json(settings)
+        candidate = dict(current, **data)
+        try:
+            lacquer.Material(candidate)  # the core's validation: names, ranges, combinations
+        except lacquer.LacquerError as e:
+            self.report({"ERROR"}, f"Lacquer: {e}; \"{mat.name}\" kept its paint")
+            return {"CANCELLED"}
+        props.load_material_json(settings, candidate)
+        settings.modified = True
+        try:
+            nodegroup.update_material(mat)
+        except nodegroup.PaintRejected as e:
+            self.report({"ERROR"}, f"Lacquer: {e}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Lacquer: paint of \"{mat.name}\" set from JSON")
         return {"FINISHED"}
 
 
@@ -137,7 +196,8 @@ def _menu_assign(self, context):
     self.layout.operator_menu_enum("lacquer.assign_paint", "preset", text="Assign Lacquer Paint")
 
 
-classes = (LACQUER_OT_assign_paint, LACQUER_OT_apply_preset, LACQUER_OT_update_paint, LACQUER_MT_presets)
+classes = (LACQUER_OT_assign_paint, LACQUER_OT_apply_preset, LACQUER_OT_update_paint, LACQUER_OT_set_paint_json,
+           LACQUER_MT_presets)
 
 
 def register():

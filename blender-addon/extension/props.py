@@ -9,6 +9,7 @@ JSON handed to the renderer use the core's names and units exactly.
 from __future__ import annotations
 
 import json
+import time
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
@@ -21,6 +22,19 @@ _loading = False  # set while load_material_json writes many fields: no refit pe
 
 _pending: set = set()  # materials waiting for a refit (names)
 
+#: Refits run on a worker thread ("lacquer-refit") and are applied by a timer on the main thread
+#: (with an undo step) when True; at once on the calling thread when False. None: asynchronous
+#: in the UI, synchronous in background mode (scripts, farms), where nothing could freeze.
+ASYNC_REFITS = None
+_jobs: dict = {}  # material name -> the refit running for it
+#: The last applied refits (name → {"thread", "seconds", "undo_pushed"}); read by the tests.
+LAST_REFITS: dict = {}
+
+
+def refits_async() -> bool:
+    """Whether refits run off the main thread (see ``ASYNC_REFITS``)."""
+    return (not bpy.app.background) if ASYNC_REFITS is None else bool(ASYNC_REFITS)
+
 
 def _refit(name: str):
     from . import nodegroup
@@ -28,10 +42,80 @@ def _refit(name: str):
     mat = bpy.data.materials.get(name)
     if mat is None or not mat.lacquer.enabled:
         return
+    if refits_async():
+        _start_refit(mat)
+        return
     try:
         nodegroup.update_material(mat)
-    except Exception as e:  # a fit failure must not break the property edit
-        mat.lacquer.fit_message = f"not updated: {e}"
+    except Exception as e:  # a fit failure must not break the property edit (the paint is kept)
+        if not mat.lacquer.fit_message.startswith("rejected:"):
+            mat.lacquer.fit_message = f"not updated: {e}"
+
+
+def _start_refit(mat):
+    """Fits the material's current paint on a worker thread; ``apply_finished_refits`` (a timer)
+    writes the result. An older refit of the same material still running is superseded."""
+    import threading
+
+    from . import fit as fitmod
+
+    material = material_json(mat.lacquer)
+    job = {"material": material, "done": False, "result": None, "error": None, "thread": None,
+           "t0": time.perf_counter()}
+
+    def work():
+        job["thread"] = threading.current_thread().name
+        try:
+            job["result"] = fitmod.fit(material)
+        except Exception as e:  # noqa: BLE001  (applied as a rejected edit on the main thread)
+            job["error"] = e
+        job["seconds"] = time.perf_counter() - job["t0"]
+        job["done"] = True
+
+    _jobs[mat.name] = job
+    mat.lacquer.fit_message = "refitting…"
+    threading.Thread(target=work, name="lacquer-refit", daemon=True).start()
+    if not bpy.app.timers.is_registered(apply_finished_refits):
+        bpy.app.timers.register(apply_finished_refits, first_interval=0.05)
+
+
+def apply_finished_refits():
+    """Timer (main thread): applies finished refits, with an undo step, and refits again the
+    materials edited while their fit ran. Returns the next interval (None when idle)."""
+    from . import nodegroup
+
+    for name, job in list(_jobs.items()):
+        if not job["done"]:
+            continue
+        del _jobs[name]
+        mat = bpy.data.materials.get(name)
+        if mat is None or not mat.lacquer.enabled:
+            continue
+        if material_json(mat.lacquer) != job["material"]:
+            _start_refit(mat)  # edited while fitting: this fit is out of date
+            continue
+        try:
+            nodegroup.apply_fit(mat, job["material"], job["result"], job["error"])
+        except nodegroup.PaintRejected:
+            pass  # the message is on the material; the previous paint is back
+        undo = False
+        try:
+            undo = bpy.ops.ed.undo_push(message=f"Lacquer refit \"{name}\"") == {"FINISHED"}
+        except RuntimeError:  # no undo system (background mode without a window)
+            undo = False
+        LAST_REFITS[name] = {"thread": job["thread"], "seconds": job.get("seconds"), "undo_pushed": undo,
+                             "rejected": job["error"] is not None}
+    return 0.05 if _jobs else None
+
+
+def wait_for_refits(timeout: float = 60.0) -> bool:
+    """Runs ``apply_finished_refits`` until no refit is running (scripts and tests, where no
+    event loop runs Blender's timers). True when all finished within ``timeout`` seconds."""
+    end = time.perf_counter() + timeout
+    while _jobs and time.perf_counter() < end:
+        apply_finished_refits()
+        time.sleep(0.01)
+    return not _jobs
 
 
 def _refit_pending():
@@ -43,7 +127,8 @@ def _refit_pending():
 def _on_param_change(self, context):
     """A paint parameter changed: the preset no longer describes it; refit if asked to. In the
     UI the refit waits until the value has stopped changing for 0.25 s (dragging a slider does
-    not fit at every step); in background mode (scripts, farms) it happens at once."""
+    not fit at every step) and then runs on a worker thread; in background mode (scripts,
+    farms) it happens at once."""
     if _loading:
         return
     self.modified = True
@@ -57,6 +142,51 @@ def _on_param_change(self, context):
     if bpy.app.timers.is_registered(_refit_pending):
         bpy.app.timers.unregister(_refit_pending)
     bpy.app.timers.register(_refit_pending, first_interval=0.25)
+
+
+@bpy.app.handlers.persistent
+def on_frame_change(scene, depsgraph=None):
+    """frame_change_post: Lacquer materials whose paint parameters are animated (keyframes or
+    drivers on ``material.lacquer.*``) get the node group refitted for the new frame (at once
+    when rendering or in background mode, so every frame of an animation render is right; on
+    the worker thread during interactive playback)."""
+    from . import nodegroup
+
+    for mat in bpy.data.materials:
+        if mat.library is not None or not mat.lacquer.enabled or mat.animation_data is None:
+            continue
+        if json.dumps(material_json(mat.lacquer), sort_keys=True) == mat.lacquer.fit_material:
+            continue
+        if refits_async() and not _rendering():
+            if mat.name not in _jobs:
+                _start_refit(mat)
+            continue
+        try:
+            nodegroup.update_material(mat)
+        except Exception as e:  # noqa: BLE001
+            print(f"Lacquer: frame {scene.frame_current}: material \"{mat.name}\": {e}")
+
+
+def _rendering() -> bool:
+    return bool(getattr(bpy.app, "is_job_running", None) and bpy.app.is_job_running("RENDER"))
+
+
+#: What the last load_post upgrade did (the panel and the tests read it).
+LAST_UPGRADE: dict = {}
+
+
+@bpy.app.handlers.persistent
+def on_load_post(*_args):
+    """load_post: upgrades the opened file's old Lacquer node groups (linked ones are left
+    untouched, with a message)."""
+    from . import nodegroup
+
+    LAST_UPGRADE.clear()
+    try:
+        LAST_UPGRADE.update(nodegroup.upgrade_file())
+    except Exception as e:  # noqa: BLE001  (a handler must not break loading the file)
+        LAST_UPGRADE["errors"] = [str(e)]
+        print(f"Lacquer: upgrading the node groups failed: {e}")
 
 
 def _prop_for(p: dict):
@@ -166,12 +296,20 @@ def register():
         _classes.append(cls)
     bpy.types.Material.lacquer = bpy.props.PointerProperty(type=paint)
     bpy.types.Scene.lacquer = bpy.props.PointerProperty(type=LacquerRenderSettings)
+    bpy.app.handlers.frame_change_post.append(on_frame_change)
+    bpy.app.handlers.load_post.append(on_load_post)
 
 
 def unregister():
-    if bpy.app.timers.is_registered(_refit_pending):
-        bpy.app.timers.unregister(_refit_pending)
+    for handlers, fn in ((bpy.app.handlers.frame_change_post, on_frame_change),
+                         (bpy.app.handlers.load_post, on_load_post)):
+        while fn in handlers:
+            handlers.remove(fn)
+    for timer in (_refit_pending, apply_finished_refits):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     _pending.clear()
+    _jobs.clear()
     for attr, owner in (("lacquer", bpy.types.Material), ("lacquer", bpy.types.Scene)):
         if hasattr(owner, attr):
             delattr(owner, attr)

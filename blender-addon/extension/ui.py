@@ -58,9 +58,16 @@ class MATERIAL_PT_lacquer(bpy.types.Panel):
             box.label(text=s.fit_message, icon="INFO")
         if not fit.available():
             box.label(text="This lacquer library has no node-group fit: reinstall the extension", icon="ERROR")
-        group = bpy.data.node_groups.get(nodegroup.GROUP_NAME)
-        if group is not None and group.get("lacquer_version") != nodegroup.NODE_GROUP_VERSION:
-            box.label(text="The node group is from another version: press Update", icon="ERROR")
+        if s.fit_message.startswith("rejected:"):
+            box.label(text=s.fit_message, icon="ERROR")
+        node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if mat.node_tree else None
+        group = node.node_tree if node is not None and node.bl_idname == "ShaderNodeGroup" else None
+        if group is not None and nodegroup.is_stale(group):
+            if group.library is not None:
+                box.label(text=f"Linked from {group.library.filepath}: left untouched (update it there)",
+                          icon="LIBRARY_DATA_DIRECT")
+            else:
+                box.label(text="The node group is from another version: press Update", icon="ERROR")
 
 
 class RENDER_PT_lacquer(bpy.types.Panel):

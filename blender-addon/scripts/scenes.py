@@ -23,6 +23,10 @@ Scenes:
   flakescale  gold_flake_8 on plates parented under a 0.01 root, plain, and collection instances
             scaled 0.5 and 0.25, at Unit Scale 1 and 0.5: the flake cells' coordinate rendered by
             Cycles (an emission copy of the node group) and LACQUER's exported sparkle uv
+  engine    the LACQUER engine as a production engine: progressive rounds, Denoising Albedo /
+            Normal passes, the compositor's Denoise node, Esc, the viewport's worker and buffer
+  editing   refits on a worker thread, keyframed parameters, load_post upgrades, linked node
+            groups, bad edits (invalid JSON, out-of-range values) keeping the previous paint
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
             also writes a side-by-side PNG (Cycles | LACQUER) with --png
 
@@ -532,6 +536,274 @@ def auto_update_smoke(mat) -> dict:
             "modified_after_reapply": mat.lacquer.modified}
 
 
+def _addon_module(name):
+    return sys.modules[f"{ADDON}.{name}"]
+
+
+def _stats(path):
+    import numpy as np
+
+    im = bpy.data.images.load(path)
+    w, h = im.size
+    px = np.empty(w * h * im.channels, np.float32)
+    im.pixels.foreach_get(px)
+    bpy.data.images.remove(im)
+    return px.reshape(h, w, -1)
+
+
+def compositor(scene, source: str, denoise: bool):
+    """Render Layers → (Denoise with Image, Denoising Normal, Denoising Albedo) → the
+    compositor's output (Blender 4.5: scene.node_tree and a Composite node; 5.0: a compositor
+    node group), or the pass ``source`` straight to the output. Returns the Render Layers
+    node's output names."""
+    if bpy.app.version >= (5, 0, 0):
+        tree = bpy.data.node_groups.new("Lacquer compositor", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+        out = tree.nodes.new("NodeGroupOutput")
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        out = tree.nodes.new("CompositorNodeComposite")
+    rl = tree.nodes.new("CompositorNodeRLayers")
+    rl.scene = scene
+    outputs = [o.name for o in rl.outputs]
+    if denoise:
+        dn = tree.nodes.new("CompositorNodeDenoise")
+        tree.links.new(rl.outputs["Image"], dn.inputs["Image"])
+        tree.links.new(rl.outputs["Denoising Normal"], dn.inputs["Normal"])
+        tree.links.new(rl.outputs["Denoising Albedo"], dn.inputs["Albedo"])
+        tree.links.new(dn.outputs[0], out.inputs[0])
+    else:
+        tree.links.new(rl.outputs[source], out.inputs[0])
+    return outputs
+
+
+def disable_compositor(scene):
+    if bpy.app.version >= (5, 0, 0):
+        scene.compositing_node_group = None
+    else:
+        scene.use_nodes = False
+
+
+def engine_smoke(out: str, size: int) -> dict:
+    """LACQUER as a production engine (issue 15 item 6): progressive rounds, passes in a
+    multilayer EXR, the compositor's Denoise node on them, Esc (test_break) cancelling promptly,
+    and the viewport's pixel buffer (view_draw needs a GPU context, which headless bpy lacks)."""
+    engine = _addon_module("engine")
+    viewport = _addon_module("viewport")
+    export = _addon_module("export")
+    rep: dict = {}
+    scene, mats = scene_compare(size, 16)
+    # Progressive render with passes, saved as a multilayer EXR.
+    r = render(scene, "LACQUER", os.path.join(out, "engine_combined.exr"))
+    rep["passes_render"] = dict(engine.LAST_RENDER, seconds_total=r["seconds"])
+    # Each pass through the compositor to an EXR (Blender 5.0.1's multilayer EXR keeps only
+    # Combined of a Python engine's result, 4.5 keeps them all: the compositor works in both).
+    for name, tag in (("Denoising Albedo", "albedo"), ("Denoising Normal", "normal")):
+        compositor(scene, name, denoise=False)
+        render(scene, "LACQUER", os.path.join(out, f"engine_{tag}.exr"))
+    disable_compositor(scene)
+    # The Denoise node on LACQUER's passes (noisy input at 4 spp), sparkle off: per-pixel flake
+    # glints are image detail a denoiser should not be judged on; the MC noise of the mean lobe is.
+    scene.lacquer.samples = 4
+    scene.lacquer.sparkle = False
+    r = render(scene, "LACQUER", os.path.join(out, "engine_noisy.exr"))
+    scene.lacquer.samples = 256
+    render(scene, "LACQUER", os.path.join(out, "engine_reference.exr"))
+    scene.lacquer.samples = 4
+    rep["rl_outputs"] = compositor(scene, "Image", denoise=True)
+    r = render(scene, "LACQUER", os.path.join(out, "engine_denoised.exr"))
+    rep["denoise_render"] = dict(engine.LAST_RENDER, seconds_total=r["seconds"])
+    disable_compositor(scene)
+    scene.lacquer.sparkle = True
+    # Esc: test_break answering True from the start; a 4096-spp render must stop at once.
+    scene.lacquer.samples = 4096
+    # (Esc → test_break is Blender's; the engine asks through engine._break_requested)
+    original = engine._break_requested
+    engine._break_requested = lambda eng: True
+    try:
+        t = time.perf_counter()
+        bpy.ops.render.render(write_still=False)
+        rep["cancel"] = dict(engine.LAST_RENDER, wall_seconds=time.perf_counter() - t)
+    finally:
+        engine._break_requested = original
+    scene.lacquer.samples = 16
+    # The viewport: the job a viewport looking through the scene camera makes, rendered by the
+    # worker in stages; the buffer view_draw uploads.
+    scene.lacquer.preview_samples = 8
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    w, h = size, size * 3 // 4
+    cam = scene.camera
+    view = cam.matrix_world.inverted()
+    proj = cam.calc_matrix_camera(depsgraph, x=w, y=h)
+    job, temp = engine.viewport_job(depsgraph, w, h, view, proj, export.Report())
+    render_cam = export.camera_desc(cam, w, h, export.Report())
+    rep["viewport_camera"] = {"viewport": job["scene"]["camera"], "render": render_cam}
+    t = time.perf_counter()
+    v = viewport.ViewportRender(job, job["spp"]).start()
+    first = None
+    while first is None and time.perf_counter() - t < 30:
+        first = v.latest()
+        time.sleep(0.005)
+    rep_first = time.perf_counter() - t
+    v.wait(60)
+    rgba, samples = v.latest()
+    buf = viewport.display_buffer(rgba)
+    rep["viewport"] = {"history": v.history, "error": v.error, "done": v.done, "first_image_seconds": rep_first,
+                       "final_shape": list(rgba.shape), "final_samples": samples, "buffer_len": int(buf.size),
+                       "buffer_mean": float(buf.reshape(-1, 4)[:, :3].mean()),
+                       "buffer_finite": bool(__import__("numpy").isfinite(buf).all())}
+    try:
+        import gpu
+
+        gpu.types.GPUTexture((w, h), format="RGBA16F", data=gpu.types.Buffer("FLOAT", buf.size, buf))
+        rep["viewport"]["gpu"] = "texture created"
+    except Exception as e:  # noqa: BLE001  (headless: no GPU context)
+        rep["viewport"]["gpu"] = f"unavailable headless: {e}"
+    # A stopped viewport render stops within the core's progress interval.
+    v2 = viewport.ViewportRender(dict(job, spp=4096), 4096).start()
+    time.sleep(0.3)
+    t = time.perf_counter()
+    v2.stop()
+    rep["viewport"]["stop_seconds"] = time.perf_counter() - t
+    for f in temp:
+        os.remove(f)
+    return rep
+
+
+def editing_smoke(out: str, size: int) -> dict:
+    """Editing that does not freeze (issue 15 item 7) and errors that lose nothing (issue 16
+    item 7): a refit on the worker thread applied by the timer, keyframed paint parameters
+    refitted on frame change, old node groups upgraded on load, linked ones left alone, bad
+    edits refused with the previous paint kept."""
+    import threading
+
+    props = _addon_module("props")
+    nodegroup = _addon_module("nodegroup")
+    export = _addon_module("export")
+    import lacquer
+
+    rep: dict = {}
+    scene, mats = scene_compare(size, 4)
+    mat = mats["gold_flake_8"]
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    cov = lambda: node.inputs["Flake Coverage"].default_value  # noqa: E731
+
+    def fitted(density):
+        m = dict(json.loads(mat.lacquer.fit_material), flake_density=density)
+        return lacquer.fit_node_group(m)["inputs"]["Flake Coverage"]
+
+    # 1. Asynchronous refit: the edit returns at once, the fit runs on "lacquer-refit", the
+    #    timer applies it (and pushes an undo step where an undo system exists).
+    props.ASYNC_REFITS = True
+    try:
+        before = cov()
+        t = time.perf_counter()
+        mat.lacquer.flake_density = 3.7  # a value no earlier fit has cached
+        edit_seconds = time.perf_counter() - t
+        right_after = cov()
+        finished = props.wait_for_refits(60)
+        rep["async"] = {"edit_seconds": edit_seconds, "coverage_before": before, "coverage_right_after": right_after,
+                        "coverage_applied": cov(), "coverage_expected": fitted(3.7), "finished": finished,
+                        "main_thread": threading.current_thread().name,
+                        "refit": props.LAST_REFITS.get(mat.name)}
+        # Applying a preset in the UI fits on the worker thread too.
+        props.LAST_REFITS.clear()
+        t = time.perf_counter()
+        bpy.ops.lacquer.apply_preset(preset="gold_flake_5", material=mat.name)
+        op_seconds = time.perf_counter() - t
+        finished = props.wait_for_refits(60)
+        rep["async_preset"] = {"op_seconds": op_seconds, "finished": finished, "coverage": cov(),
+                               "expected": lacquer.fit_node_group("gold_flake_5")["inputs"]["Flake Coverage"],
+                               "refit": props.LAST_REFITS.get(mat.name)}
+    finally:
+        props.ASYNC_REFITS = None
+    # 2. Keyframed paint parameters: frame changes refit the node group.
+    mat.lacquer.flake_density = 8.0
+    mat.keyframe_insert("lacquer.flake_density", frame=1)
+    mat.lacquer.flake_density = 2.5
+    mat.keyframe_insert("lacquer.flake_density", frame=11)
+    frames = {}
+    for f in (1, 11, 6):
+        scene.frame_set(f)
+        frames[f] = {"density": mat.lacquer.flake_density, "coverage": cov(),
+                     "expected": fitted(mat.lacquer.flake_density)}
+    rep["frames"] = frames
+    mat.animation_data_clear()
+    scene.frame_set(1)
+    # 3. Bad edits keep the previous valid paint (node group and LACQUER's export).
+    mat.lacquer.flake_density = 8.0
+    good = json.loads(mat.lacquer.fit_material)
+    good_cov = cov()
+    bad = {}
+    for label, text in (("invalid_json", "{flake_density: 5"), ("out_of_range", '{"flake_density": 500}'),
+                        ("unknown_parameter", '{"flake_densty": 5}'), ("wrong_model", '{"model": "lambert"}')):
+        try:
+            r = bpy.ops.lacquer.set_paint_json(json=text, material=mat.name)
+            msg = str(r)
+        except RuntimeError as e:  # bpy raises the operator's ERROR report
+            msg = str(e)
+        bad[label] = {"message": msg, "kept_settings": props.material_json(mat.lacquer) == good,
+                      "kept_node": cov() == good_cov,
+                      "kept_lacquer": export.material_desc(mat, export.Report()) == good}
+    # A property edit the core refuses on refit (a fit failure, as a core error would be).
+    fitmod = _addon_module("fit")
+    real_fit = fitmod.fit
+
+    def refusing_fit(material):
+        if material["flake_density"] == 4.25:
+            raise lacquer.InvalidMaterialError(3, "flake_density 4.25: refused (test)")
+        return real_fit(material)
+
+    fitmod.fit = refusing_fit
+    try:
+        mat.lacquer.flake_density = 4.25
+    finally:
+        fitmod.fit = real_fit
+    bad["refused_by_refit"] = {"message": mat.lacquer.fit_message,
+                               "kept_settings": props.material_json(mat.lacquer) == good,
+                               "kept_node": cov() == good_cov,
+                               "kept_lacquer": export.material_desc(mat, export.Report()) == good}
+    ok = bpy.ops.lacquer.set_paint_json(json='{"flake_density": 5}', material=mat.name)
+    bad["valid_json"] = {"result": str(ok), "density": mat.lacquer.flake_density, "coverage": cov(),
+                         "expected": fitted(5.0)}
+    rep["bad_edits"] = bad
+    # 4. load_post: an old node group in a saved file is upgraded when the file is opened.
+    name = mat.name  # the Python objects die with the file that is closed below
+    group = node.node_tree
+    group["lacquer_version"] = nodegroup.NODE_GROUP_VERSION - 1
+    expected_cov = cov()
+    node.inputs["Flake Coverage"].default_value = 0.99
+    old = os.path.join(out, "old_group.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=old)
+    bpy.ops.wm.open_mainfile(filepath=old)
+    g = bpy.data.node_groups[nodegroup.GROUP_NAME]
+    m = bpy.data.materials[name]
+    rep["load_post"] = {"upgrade": dict(props.LAST_UPGRADE), "version_after": g.get("lacquer_version"),
+                        "coverage_after": m.node_tree.nodes["Lacquer Paint"].inputs["Flake Coverage"].default_value,
+                        "coverage_expected": expected_cov}
+    # 5. A linked (library) old group is left untouched, with a message.
+    g["lacquer_version"] = nodegroup.NODE_GROUP_VERSION - 1
+    lib_path = os.path.join(out, "paint_library.blend")
+    bpy.data.libraries.write(lib_path, {bpy.data.materials[name]}, fake_user=True)
+    scene = fresh_scene(size, 4)
+    with bpy.data.libraries.load(lib_path, link=True) as (src, dst):
+        dst.materials = [name]
+    linked_mat = next(x for x in bpy.data.materials if x.library is not None)
+    ball = sphere(scene, 0.05)
+    ball.data.materials.append(linked_mat)
+    shot = os.path.join(out, "uses_library.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    lg = next(x for x in bpy.data.node_groups if x.name == nodegroup.GROUP_NAME)
+    rep["linked"] = {"upgrade": dict(props.LAST_UPGRADE), "library": lg.library.filepath if lg.library else None,
+                     "version_after": lg.get("lacquer_version"),
+                     "local_groups": [x.name for x in bpy.data.node_groups if x.library is None]}
+    return rep
+
+
 def material_info(mat) -> dict:
     s = mat.lacquer
     return {"preset": s.preset, "fit_source": s.fit_message,
@@ -600,6 +872,7 @@ def main(argv):
     engines = a.engines.split(",")
     try:
         jobs = []
+        smokes = []
         for name in a.scenes.split(","):
             if name == "compare":
                 jobs.append(("compare", lambda: scene_compare(a.size, a.spp)))
@@ -615,6 +888,8 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
+            elif name in ("engine", "editing"):
+                smokes.append(name)  # after the scenes: editing opens and saves files
             elif name == "flakescale":
                 for u in FLAKESCALE_UNITS:
                     jobs.append((f"flakescale_{u}", lambda u=u: scene_flakescale(a.size, a.spp, u)))
@@ -664,6 +939,11 @@ def main(argv):
                 r.update(scene=name, tag=tag, setup_seconds=setup)
                 report["renders"].append(r)
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
+        for name in smokes:
+            t = time.perf_counter()
+            report[name] = (engine_smoke if name == "engine" else editing_smoke)(os.path.abspath(a.out), a.size)
+            report[name]["smoke_seconds"] = time.perf_counter() - t
+            print(f"{name} smoke in {report[name]['smoke_seconds']:.2f} s", flush=True)
         if a.png and "readme" in a.scenes.split(","):
             out = os.path.abspath(a.out)
             side_by_side_png(os.path.join(out, "readme_cycles.exr"), os.path.join(out, "readme_lacquer.exr"), a.png)

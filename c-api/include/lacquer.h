@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 4
+#define LQ_ABI_VERSION_MINOR 5
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -197,6 +197,14 @@ typedef struct lq_image lq_image;
  * number of threads at once (every function takes it as `const`).
  */
 typedef struct lq_material lq_material;
+
+/**
+ * A render refined in rounds (progressive display): create it with `lq_render_session_new`,
+ * add samples with `lq_render_session_advance`, read the image so far with
+ * `lq_render_session_image`, free it with `lq_render_session_free`. Any split of the job's
+ * `spp` into rounds gives `lq_render`'s image bit for bit. One thread at a time per session.
+ */
+typedef struct lq_render_session lq_render_session;
 
 /**
  * Progress callback of `lq_render`: called on the thread that called `lq_render` (never on a
@@ -750,6 +758,68 @@ lq_status lq_render(const char *job_json,
                     lq_progress_fn progress,
                     void *user,
                     lq_image **out);
+
+/**
+ * Parses a render job (the JSON of `lq_render`) and builds its scene; no samples yet. On
+ * success writes a new session to `*out`. Errors: LQ_ERR_NULL, LQ_ERR_INVALID_JSON (not UTF-8),
+ * LQ_ERR_INVALID_ARGUMENT (the job, its material or its scene is invalid). `*out` is
+ * untouched on error.
+ *
+ * # Safety
+ * `job_json` is NULL or a NUL-terminated string; `out` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_render_session_new(const char *job_json, lq_render_session **out);
+
+/**
+ * Adds up to `samples` samples per pixel (never beyond the job's `spp`) and writes how many
+ * were added to `*added` (may be NULL). `progress` (may be NULL) is called on this thread with
+ * the fraction of this round done; returning `false` cancels the round, which leaves the
+ * session as it was before it (LQ_ERR_CANCELLED; a later call resumes). Errors: LQ_ERR_NULL,
+ * LQ_ERR_CANCELLED.
+ *
+ * # Safety
+ * `session` is NULL or a live session not used by another thread during the call;
+ * `progress` is NULL or callable with `user`; `added` is NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_render_session_advance(lq_render_session *session,
+                                    uint32_t samples,
+                                    lq_progress_fn progress,
+                                    void *user,
+                                    uint32_t *added);
+
+/**
+ * Samples per pixel done so far (0 for NULL).
+ *
+ * # Safety
+ * `session` is NULL or a live session.
+ */
+LQ_MUST_USE uint32_t lq_render_session_samples(const lq_render_session *session);
+
+/**
+ * The job's samples per pixel, i.e. when the render is complete (0 for NULL).
+ *
+ * # Safety
+ * `session` is NULL or a live session.
+ */
+LQ_MUST_USE uint32_t lq_render_session_target(const lq_render_session *session);
+
+/**
+ * The image so far (the mean of the samples done; black before the first round) as a new
+ * image in `*out` (free it with `lq_image_free`). Errors: LQ_ERR_NULL.
+ *
+ * # Safety
+ * `session` is NULL or a live session; `out` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_render_session_image(const lq_render_session *session, lq_image **out);
+
+/**
+ * Releases a session. NULL is a no-op.
+ *
+ * # Safety
+ * `session` is NULL or a live session, freed exactly once.
+ */
+void lq_render_session_free(lq_render_session *session);
 
 /**
  * Width in pixels (0 for NULL).

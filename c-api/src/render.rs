@@ -3,7 +3,7 @@
 
 use crate::status::{guard, guard_value, lq_status, Failure};
 use crate::strings::c_str;
-use lacquer_render::{render_job, Framebuffer, JobError};
+use lacquer_render::{render_job, Framebuffer, JobError, JobRender};
 use std::ffi::{c_char, c_void};
 
 /// A rendered image. Free it with `lq_image_free`.
@@ -68,14 +68,142 @@ pub unsafe extern "C" fn lq_render(
             Some(f) => unsafe { f(fraction, user) },
             None => true,
         };
-        let fb = render_job(text, &mut report).map_err(|e| match e {
-            JobError::Invalid(m) => Failure::invalid(m),
-            JobError::Cancelled => Failure::new(lq_status::LQ_ERR_CANCELLED, "the render was cancelled"),
-        })?;
+        let fb = render_job(text, &mut report).map_err(job_failure)?;
         // SAFETY: checked non-NULL above; the caller's writable slot.
         unsafe { *out = Box::into_raw(Box::new(lq_image::from(fb))) };
         Ok(())
     })
+}
+
+/// A render refined in rounds (progressive display): create it with `lq_render_session_new`,
+/// add samples with `lq_render_session_advance`, read the image so far with
+/// `lq_render_session_image`, free it with `lq_render_session_free`. Any split of the job's
+/// `spp` into rounds gives `lq_render`'s image bit for bit. One thread at a time per session.
+pub struct lq_render_session {
+    job: JobRender,
+}
+
+fn job_failure(e: JobError) -> Failure {
+    match e {
+        JobError::Invalid(m) => Failure::invalid(m),
+        JobError::Cancelled => Failure::new(lq_status::LQ_ERR_CANCELLED, "the render was cancelled"),
+    }
+}
+
+/// Parses a render job (the JSON of `lq_render`) and builds its scene; no samples yet. On
+/// success writes a new session to `*out`. Errors: LQ_ERR_NULL, LQ_ERR_INVALID_JSON (not UTF-8),
+/// LQ_ERR_INVALID_ARGUMENT (the job, its material or its scene is invalid). `*out` is
+/// untouched on error.
+///
+/// # Safety
+/// `job_json` is NULL or a NUL-terminated string; `out` is NULL or writable.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_render_session_new(job_json: *const c_char, out: *mut *mut lq_render_session) -> lq_status {
+    guard(|| {
+        // SAFETY: the caller's contract above.
+        let text = unsafe { c_str("job_json", job_json, lq_status::LQ_ERR_INVALID_JSON) }?;
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let job = JobRender::new(text).map_err(job_failure)?;
+        // SAFETY: checked non-NULL above; the caller's writable slot.
+        unsafe { *out = Box::into_raw(Box::new(lq_render_session { job })) };
+        Ok(())
+    })
+}
+
+/// Adds up to `samples` samples per pixel (never beyond the job's `spp`) and writes how many
+/// were added to `*added` (may be NULL). `progress` (may be NULL) is called on this thread with
+/// the fraction of this round done; returning `false` cancels the round, which leaves the
+/// session as it was before it (LQ_ERR_CANCELLED; a later call resumes). Errors: LQ_ERR_NULL,
+/// LQ_ERR_CANCELLED.
+///
+/// # Safety
+/// `session` is NULL or a live session not used by another thread during the call;
+/// `progress` is NULL or callable with `user`; `added` is NULL or writable.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_render_session_advance(
+    session: *mut lq_render_session,
+    samples: u32,
+    progress: lq_progress_fn,
+    user: *mut c_void,
+    added: *mut u32,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: the caller's contract above.
+        let s = unsafe { session.as_mut() }.ok_or_else(|| Failure::null("session"))?;
+        let mut report = |fraction: f32| match progress {
+            // SAFETY: the caller guarantees the callback accepts `user`.
+            Some(f) => unsafe { f(fraction, user) },
+            None => true,
+        };
+        let n = s.job.advance(samples, &mut report).map_err(job_failure)?;
+        if !added.is_null() {
+            // SAFETY: checked non-NULL; the caller's writable slot.
+            unsafe { *added = n };
+        }
+        Ok(())
+    })
+}
+
+/// Samples per pixel done so far (0 for NULL).
+///
+/// # Safety
+/// `session` is NULL or a live session.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_render_session_samples(session: *const lq_render_session) -> u32 {
+    // SAFETY: the caller's contract above.
+    guard_value(0, || unsafe { session.as_ref() }.map_or(0, |s| s.job.samples()))
+}
+
+/// The job's samples per pixel, i.e. when the render is complete (0 for NULL).
+///
+/// # Safety
+/// `session` is NULL or a live session.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_render_session_target(session: *const lq_render_session) -> u32 {
+    // SAFETY: the caller's contract above.
+    guard_value(0, || unsafe { session.as_ref() }.map_or(0, |s| s.job.target()))
+}
+
+/// The image so far (the mean of the samples done; black before the first round) as a new
+/// image in `*out` (free it with `lq_image_free`). Errors: LQ_ERR_NULL.
+///
+/// # Safety
+/// `session` is NULL or a live session; `out` is NULL or writable.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_render_session_image(
+    session: *const lq_render_session,
+    out: *mut *mut lq_image,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: the caller's contract above.
+        let s = unsafe { session.as_ref() }.ok_or_else(|| Failure::null("session"))?;
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let img = lq_image::from(s.job.framebuffer());
+        // SAFETY: checked non-NULL above; the caller's writable slot.
+        unsafe { *out = Box::into_raw(Box::new(img)) };
+        Ok(())
+    })
+}
+
+/// Releases a session. NULL is a no-op.
+///
+/// # Safety
+/// `session` is NULL or a live session, freed exactly once.
+#[no_mangle]
+pub unsafe extern "C" fn lq_render_session_free(session: *mut lq_render_session) {
+    if !session.is_null() {
+        // SAFETY: sessions come from Box::into_raw in lq_render_session_new.
+        guard_value((), || drop(unsafe { Box::from_raw(session) }));
+    }
 }
 
 /// Width in pixels (0 for NULL).

@@ -51,6 +51,7 @@ __all__ = [
     "check_model",
     "fit_node_group",
     "render",
+    "RenderSession",
     "CancelledError",
     "abi_version",
     "set_thread_count",
@@ -492,6 +493,32 @@ def fit_node_group(material_or_preset: Union[str, bytes, dict, Material]) -> dic
     return _json.loads(_native.take_string(out))
 
 
+def _progress_callback(progress):
+    def _trampoline(fraction, _user):
+        try:
+            return bool(progress(float(fraction))) if progress is not None else True
+        except Exception:  # an exception cannot cross C frames: cancel instead
+            return False
+
+    return _native.PROGRESS_FN(_trampoline)
+
+
+def _image_dict(handle) -> dict:
+    w, h = _native.lib.lq_image_width(handle), _native.lib.lq_image_height(handle)
+
+    def _array(ptr, channels):
+        if not ptr:
+            return None
+        buf = (ctypes.c_float * (w * h * channels)).from_address(ptr)
+        return np.ctypeslib.as_array(buf).reshape(h, w, channels).copy()
+
+    return {
+        "rgba": _array(_native.lib.lq_image_rgba(handle), 4),
+        "albedo": _array(_native.lib.lq_image_albedo(handle), 3),
+        "normal": _array(_native.lib.lq_image_normal(handle), 3),
+    }
+
+
 def render(job, progress=None) -> dict:
     """Renders a job with the reference renderer (docs/render.md lists the keys).
 
@@ -501,29 +528,73 @@ def render(job, progress=None) -> dict:
     None, "normal": (h, w, 3) or None}``, rows top first, linear Rec.709.
     """
     text = job if isinstance(job, str) else _json.dumps(job)
-
-    def _trampoline(fraction, _user):
-        try:
-            return bool(progress(float(fraction))) if progress is not None else True
-        except Exception:  # an exception cannot cross C frames: cancel instead
-            return False
-
-    callback = _native.PROGRESS_FN(_trampoline)
+    callback = _progress_callback(progress)
     handle = ctypes.c_void_p()
     _check(_native.lib.lq_render(text.encode(), callback, None, ctypes.byref(handle)))
     try:
-        w, h = _native.lib.lq_image_width(handle), _native.lib.lq_image_height(handle)
-
-        def _array(ptr, channels):
-            if not ptr:
-                return None
-            buf = (ctypes.c_float * (w * h * channels)).from_address(ptr)
-            return np.ctypeslib.as_array(buf).reshape(h, w, channels).copy()
-
-        return {
-            "rgba": _array(_native.lib.lq_image_rgba(handle), 4),
-            "albedo": _array(_native.lib.lq_image_albedo(handle), 3),
-            "normal": _array(_native.lib.lq_image_normal(handle), 3),
-        }
+        return _image_dict(handle)
     finally:
         _native.lib.lq_image_free(handle)
+
+
+class RenderSession:
+    """A render job refined in rounds, for progressive display (``lq_render_session_*``).
+
+    ``RenderSession(job)`` parses the job and builds its scene (:class:`InvalidArgumentError`
+    if invalid); :meth:`advance` adds samples per pixel; :meth:`image` is the mean so far (the
+    dict :func:`render` returns). Any split of the job's ``spp`` into rounds gives
+    :func:`render`'s image bit for bit. Use from one thread at a time; the GIL is released
+    while a round renders.
+    """
+
+    def __init__(self, job):
+        text = job if isinstance(job, str) else _json.dumps(job)
+        handle = ctypes.c_void_p()
+        _check(_native.lib.lq_render_session_new(text.encode(), ctypes.byref(handle)))
+        self._handle = handle
+
+    def _h(self):
+        if not self._handle:
+            raise ValueError("the render session is closed")
+        return self._handle
+
+    @property
+    def samples(self) -> int:
+        """Samples per pixel done so far."""
+        return int(_native.lib.lq_render_session_samples(self._h()))
+
+    @property
+    def target(self) -> int:
+        """The job's samples per pixel (the render is complete when ``samples == target``)."""
+        return int(_native.lib.lq_render_session_target(self._h()))
+
+    def advance(self, samples: int, progress=None) -> int:
+        """Adds up to ``samples`` samples per pixel (never beyond the target) and returns how
+        many. ``progress(fraction of this round) -> bool`` runs on this thread about ten times a
+        second; returning False cancels the round (:class:`CancelledError`), which leaves the
+        session as it was."""
+        added = ctypes.c_uint32(0)
+        callback = _progress_callback(progress)
+        _check(_native.lib.lq_render_session_advance(self._h(), int(samples), callback, None, ctypes.byref(added)))
+        return int(added.value)
+
+    def image(self) -> dict:
+        """The image so far: ``{"rgba", "albedo", "normal"}`` as :func:`render` returns."""
+        handle = ctypes.c_void_p()
+        _check(_native.lib.lq_render_session_image(self._h(), ctypes.byref(handle)))
+        try:
+            return _image_dict(handle)
+        finally:
+            _native.lib.lq_image_free(handle)
+
+    def close(self) -> None:
+        """Frees the session (also done when it is garbage-collected)."""
+        if self._handle:
+            _native.lib.lq_render_session_free(self._handle)
+            self._handle = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001  (interpreter shutdown)
+            pass

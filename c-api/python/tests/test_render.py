@@ -23,3 +23,27 @@ def test_render_cancel_and_errors():
         lacquer.render({"preset": "no_such_preset"})
     with pytest.raises(lacquer.InvalidArgumentError):
         lacquer.render('{"spp": 0}')
+
+
+def test_render_session_rounds_end_at_the_one_shot_image():
+    job = {"preset": "gold_flake_8", "width": 16, "height": 12, "spp": 6}
+    once = lacquer.render(job)
+    s = lacquer.RenderSession(job)
+    assert (s.samples, s.target) == (0, 6)
+    assert s.advance(2) == 2
+    partial = s.image()
+    assert partial["rgba"].shape == (12, 16, 4) and np.isfinite(partial["rgba"]).all()
+    assert not np.array_equal(partial["rgba"], once["rgba"])
+    assert s.advance(10) == 4 and s.samples == 6
+    done = s.image()
+    for k in ("rgba", "albedo", "normal"):
+        assert np.array_equal(done[k], once[k]), k
+    s.close()
+    with pytest.raises(ValueError):
+        s.advance(1)
+    with pytest.raises(lacquer.InvalidArgumentError, match="no_such"):
+        lacquer.RenderSession({"preset": "no_such_preset"})
+    big = lacquer.RenderSession({"preset": "gold_flake_0", "width": 64, "height": 64, "spp": 4096})
+    with pytest.raises(lacquer.CancelledError):
+        big.advance(4096, progress=lambda f: False)
+    assert big.samples == 0

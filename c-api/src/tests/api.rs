@@ -566,6 +566,62 @@ fn render_produces_an_image_reports_errors_and_cancels() {
     }
 }
 
+/// A render session refined in rounds ends with `lq_render`'s image bit for bit; the image
+/// between rounds is readable; a cancelled round leaves the session as it was; NULLs are refused.
+#[test]
+fn render_session_rounds_equal_lq_render() {
+    use crate::render::*;
+    use std::ffi::{c_void, CString};
+    let job = CString::new(r#"{"preset": "gold_flake_8", "width": 12, "height": 10, "spp": 5}"#).unwrap();
+    let pixels = |img: *mut lq_image| -> Vec<f32> {
+        // SAFETY: a live image from the calls below.
+        let v = unsafe { std::slice::from_raw_parts(lq_image_rgba(img), 12 * 10 * 4) }.to_vec();
+        unsafe { lq_image_free(img) };
+        v
+    };
+    let mut img: *mut lq_image = std::ptr::null_mut();
+    let mut s: *mut lq_render_session = std::ptr::null_mut();
+    unsafe {
+        assert_eq!(lq_render(job.as_ptr(), None, std::ptr::null_mut(), &mut img), LQ_OK);
+        let once = pixels(img);
+        assert_eq!(lq_render_session_new(job.as_ptr(), &mut s), LQ_OK);
+        assert_eq!((lq_render_session_samples(s), lq_render_session_target(s)), (0, 5));
+        let mut added = 0u32;
+        assert_eq!(lq_render_session_advance(s, 2, None, std::ptr::null_mut(), &mut added), LQ_OK);
+        assert_eq!(added, 2);
+        assert_eq!(lq_render_session_image(s, &mut img), LQ_OK);
+        let partial = pixels(img);
+        assert!(partial != once && partial.iter().all(|v| v.is_finite()));
+        assert_eq!(lq_render_session_advance(s, 9, None, std::ptr::null_mut(), &mut added), LQ_OK);
+        assert_eq!((added, lq_render_session_samples(s)), (3, 5));
+        assert_eq!(lq_render_session_image(s, &mut img), LQ_OK);
+        assert_eq!(pixels(img), once);
+        assert_eq!(lq_render_session_image(s, std::ptr::null_mut()), lq_status::LQ_ERR_NULL);
+        lq_render_session_free(s);
+        lq_render_session_free(std::ptr::null_mut());
+        assert_eq!(lq_render_session_samples(std::ptr::null()), 0);
+        assert_eq!(
+            lq_render_session_advance(std::ptr::null_mut(), 1, None, std::ptr::null_mut(), &mut added),
+            lq_status::LQ_ERR_NULL
+        );
+        let bad = CString::new(r#"{"preset": "no_such_preset"}"#).unwrap();
+        s = std::ptr::null_mut();
+        assert_eq!(lq_render_session_new(bad.as_ptr(), &mut s), lq_status::LQ_ERR_INVALID_ARGUMENT);
+        assert!(s.is_null());
+    }
+    unsafe extern "C" fn stop(_p: f32, _user: *mut c_void) -> bool {
+        false
+    }
+    let long = CString::new(r#"{"preset": "gold_flake_0", "width": 64, "height": 64, "spp": 4096}"#).unwrap();
+    unsafe {
+        assert_eq!(lq_render_session_new(long.as_ptr(), &mut s), LQ_OK);
+        let st = lq_render_session_advance(s, 4096, Some(stop), std::ptr::null_mut(), std::ptr::null_mut());
+        assert_eq!(st, lq_status::LQ_ERR_CANCELLED);
+        assert_eq!(lq_render_session_samples(s), 0);
+        lq_render_session_free(s);
+    }
+}
+
 /// The structure-of-arrays calls give exactly the interleaved calls' values (same kernels),
 /// zero outputs for inactive elements, the same statuses for invalid elements, and refuse
 /// NULL component arrays; lq_set_thread_count does not change any value.

@@ -4,9 +4,13 @@
 //! (`max_depth = 1`). Delta material lobes (the smooth clearcoat's mirror) and delta lights
 //! take no MIS: each can only be reached by one of the two strategies.
 //!
-//! The image is cut into tiles rendered in parallel (rayon). Every pixel owns a random stream
-//! derived from the seed and its index, so a render is deterministic for a seed whatever the
-//! number of threads or the tile order.
+//! The image is cut into tiles rendered in parallel (rayon). Within a tile, shading is
+//! wavefront-style: the paths of all the tile's pixels (one sample index at a time) advance to
+//! their next vertex, then each material shades all its vertices with two batch calls through
+//! the SIMD kernels (`lacquer::batch`; sparkle through the surface-point calls), then the
+//! paths continue. Every pixel owns a random stream derived from the seed and its index, drawn
+//! in the same order as a path traced alone, so a render is deterministic for a seed whatever
+//! the number of threads, the tile order or the split into progressive rounds.
 
 use crate::camera::CameraRay;
 use crate::geom::{offset_origin, Frame, Ray, V3};
@@ -141,6 +145,7 @@ impl std::fmt::Display for Cancelled {
 impl std::error::Error for Cancelled {}
 
 /// Per-pixel random numbers (PCG32 in `f32`).
+#[derive(Clone)]
 struct Sampler(Pcg32);
 
 impl Sampler {
@@ -531,32 +536,55 @@ fn shade_group(mat: &Material, vertices: &[Vertex], group: &[u32], buf: &mut Sha
     }
 }
 
-/// Sums of one pixel's samples.
-#[derive(Clone, Copy, Default)]
-struct PixelSum {
-    color: [f64; 3],
-    alpha: f64,
-    albedo: [f64; 3],
-    normal: [f64; 3],
+/// One pixel between rounds of a progressive render: its random stream and the running sums
+/// of its samples (colour, alpha, albedo, normal; f64 as the one-shot render always summed).
+#[derive(Clone)]
+struct PixelState {
+    rng: Sampler,
+    c: [f64; 3],
+    a: f64,
+    al: [f64; 3],
+    n: [f64; 3],
 }
 
-/// Renders one tile, all its pixels' paths of one sample index at a time (a wave): paths are
-/// traced to their next vertex one by one, then every vertex of a material is shaded in
-/// one batch call, then the paths go on. Each pixel's random stream is drawn in the same order
-/// as a path traced alone. Returns the pixels (rows of the tile) and the number of dropped
-/// (non-finite) paths, or `None` when cancelled.
+impl PixelState {
+    fn new(set: &RenderSettings, width: u32, x: u32, y: u32) -> Self {
+        Self {
+            rng: Sampler(Pcg32::new(set.seed, y as u64 * width as u64 + x as u64)),
+            c: [0.0; 3],
+            a: 0.0,
+            al: [0.0; 3],
+            n: [0.0; 3],
+        }
+    }
+
+    /// The mean of `samples` samples: colour, alpha, albedo, unit normal.
+    fn value(&self, samples: u32) -> PixelValue {
+        let inv = 1.0 / samples.max(1) as f64;
+        let n = self.n;
+        let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
+        (self.c.map(|v| (v * inv) as f32), (self.a * inv) as f32, self.al.map(|v| (v * inv) as f32), normal)
+    }
+}
+
+/// Adds `n` samples to the pixels of tile `t` (`states`: their random streams and sums, rows
+/// of the tile), all pixels' paths of one sample index at a time (a wave): paths are traced to
+/// their next vertex one by one, then every vertex of a material is shaded in one batch call,
+/// then the paths go on. Each pixel's random stream is drawn in the same order as a path
+/// traced alone. Returns the number of dropped (non-finite) paths, or `None` when cancelled
+/// (the states are then partly updated: the caller discards them).
 fn render_tile(
     scene: &Scene,
     set: &RenderSettings,
     t: &Tile,
+    states: &mut [PixelState],
+    n: u32,
     cancel: &AtomicBool,
     done: &AtomicU64,
-) -> Option<(Vec<PixelValue>, u64)> {
-    let w = scene.camera.width() as u64;
+) -> Option<u64> {
     let coords: Vec<(u32, u32)> = (t.y0..t.y1).flat_map(|y| (t.x0..t.x1).map(move |x| (x, y))).collect();
-    let mut rngs: Vec<Sampler> =
-        coords.iter().map(|&(x, y)| Sampler(Pcg32::new(set.seed, y as u64 * w + x as u64))).collect();
-    let mut sums = vec![PixelSum::default(); coords.len()];
+    debug_assert_eq!(coords.len(), states.len());
     let mut invalid = 0u64;
     let mut paths: Vec<Path> = Vec::with_capacity(coords.len());
     let (mut alive, mut next): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
@@ -564,13 +592,13 @@ fn render_tile(
     let mut shaded: Vec<Shaded> = Vec::new();
     let mut groups: Vec<Vec<u32>> = vec![Vec::new(); scene.materials.len()];
     let mut buf = ShadeBuffers::default();
-    for _ in 0..set.spp {
+    for _ in 0..n {
         if cancel.load(Ordering::Relaxed) {
             return None;
         }
         paths.clear();
-        for (k, &(x, y)) in coords.iter().enumerate() {
-            let j = if set.jitter { rngs[k].next2() } else { [0.5, 0.5] };
+        for (st, &(x, y)) in states.iter_mut().zip(&coords) {
+            let j = if set.jitter { st.rng.next2() } else { [0.5, 0.5] };
             paths.push(Path::new(scene.camera.generate_in_pixel(x, y, j)));
         }
         alive.clear();
@@ -578,7 +606,7 @@ fn render_tile(
         while !alive.is_empty() {
             vertices.clear();
             for &i in &alive {
-                if let Some(mut v) = advance(scene, set, &mut paths[i as usize], &mut rngs[i as usize]) {
+                if let Some(mut v) = advance(scene, set, &mut paths[i as usize], &mut states[i as usize].rng) {
                     v.path = i;
                     vertices.push(v);
                 }
@@ -599,13 +627,13 @@ fn render_tile(
             next.clear();
             for (v, s) in vertices.iter().zip(&shaded) {
                 let i = v.path as usize;
-                if finish(scene, set, &mut paths[i], v, s, &mut rngs[i]) {
+                if finish(scene, set, &mut paths[i], v, s, &mut states[i].rng) {
                     next.push(v.path);
                 }
             }
             std::mem::swap(&mut alive, &mut next);
         }
-        for (sum, path) in sums.iter_mut().zip(&paths) {
+        for (st, path) in states.iter_mut().zip(&paths) {
             let v = &path.value;
             let mut r = v.radiance;
             if !r.is_finite() || r.min_channel() < 0.0 {
@@ -619,29 +647,19 @@ fn render_tile(
                 }
             }
             for k in 0..3 {
-                sum.color[k] += r[k] as f64;
+                st.c[k] += r[k] as f64;
             }
-            sum.alpha += v.alpha as f64;
+            st.a += v.alpha as f64;
             if set.aovs && v.albedo.is_finite() {
-                for (k, n) in [v.normal.x, v.normal.y, v.normal.z].into_iter().enumerate() {
-                    sum.albedo[k] += v.albedo[k] as f64;
-                    sum.normal[k] += n as f64;
+                for (k, nk) in [v.normal.x, v.normal.y, v.normal.z].into_iter().enumerate() {
+                    st.al[k] += v.albedo[k] as f64;
+                    st.n[k] += nk as f64;
                 }
             }
         }
         done.fetch_add(coords.len() as u64, Ordering::Relaxed);
     }
-    let inv = 1.0 / set.spp.max(1) as f64;
-    let px = sums
-        .iter()
-        .map(|s| {
-            let n = s.normal;
-            let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            let normal = if nl > 0.0 { n.map(|v| (v / nl) as f32) } else { [0.0; 3] };
-            (s.color.map(|v| (v * inv) as f32), (s.alpha * inv) as f32, s.albedo.map(|v| (v * inv) as f32), normal)
-        })
-        .collect();
-    Some((px, invalid))
+    Some(invalid)
 }
 
 /// Colour, alpha, albedo, normal of one pixel.
@@ -654,6 +672,160 @@ struct Tile {
     y1: u32,
 }
 
+/// A render refined in rounds, for hosts that show the image while it converges (Blender's
+/// render window and viewport): [`Progressive::advance`] adds samples per pixel, and
+/// [`Progressive::framebuffer`] is the mean of the samples so far. Every pixel continues its
+/// own random stream and sums in the same order, so any split of `spp` samples into rounds
+/// gives the image [`render`] gives, bit for bit. Memory: about 100 bytes per pixel.
+pub struct Progressive {
+    width: u32,
+    height: u32,
+    set: RenderSettings,
+    pixels: Vec<PixelState>,
+    samples: u32,
+    invalid: u64,
+    seconds: f64,
+}
+
+impl Progressive {
+    /// A render of `scene` with `set` (its `spp` is the target) with no samples yet.
+    #[must_use]
+    pub fn new(scene: &Scene, set: &RenderSettings) -> Self {
+        let (w, h) = (scene.camera.width(), scene.camera.height());
+        let pixels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| PixelState::new(set, w, x, y));
+        Self { width: w, height: h, set: set.clone(), pixels: pixels.collect(), samples: 0, invalid: 0, seconds: 0.0 }
+    }
+
+    /// Samples per pixel done so far.
+    #[must_use]
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The samples per pixel asked for (the settings' `spp`).
+    #[must_use]
+    pub fn target(&self) -> u32 {
+        self.set.spp
+    }
+
+    /// Adds up to `n` samples per pixel (never beyond the target) and returns how many were
+    /// added. `progress(fraction of this round)` runs on the calling thread about ten times a
+    /// second; returning `false` cancels the round, which leaves the render as it was before it
+    /// (`Err(Cancelled)`; a later `advance` resumes). `scene` must be the scene given to `new`.
+    ///
+    /// # Panics
+    /// If `scene`'s image size differs from the one given to `new`.
+    pub fn advance(&mut self, scene: &Scene, n: u32, progress: &mut dyn FnMut(f32) -> bool) -> Result<u32, Cancelled> {
+        use rayon::prelude::*;
+        let (w, h) = (self.width, self.height);
+        assert_eq!((scene.camera.width(), scene.camera.height()), (w, h), "advance: not the scene of new()");
+        let n = n.min(self.set.spp.saturating_sub(self.samples));
+        if n == 0 {
+            return Ok(0);
+        }
+        let set = &self.set;
+        let ts = set.tile_size.max(1);
+        let mut tiles = Vec::new();
+        for y0 in (0..h).step_by(ts as usize) {
+            for x0 in (0..w).step_by(ts as usize) {
+                tiles.push(Tile { x0, y0, x1: (x0 + ts).min(w), y1: (y0 + ts).min(h) });
+            }
+        }
+        // Progress counts pixel samples (a tile reports after each sample index of the round).
+        let total =
+            (tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>() * u64::from(n)).max(1);
+        let done = AtomicU64::new(0);
+        let invalid = AtomicU64::new(0);
+        let cancel = AtomicBool::new(false);
+        let start = Instant::now();
+        let pixels = &self.pixels;
+
+        let work = || -> Vec<Option<Vec<PixelState>>> {
+            tiles
+                .par_iter()
+                .map(|t| {
+                    let mut px: Vec<PixelState> = (t.y0..t.y1)
+                        .flat_map(|y| (t.x0..t.x1).map(move |x| pixels[(y * w + x) as usize].clone()))
+                        .collect();
+                    let bad = render_tile(scene, set, t, &mut px, n, &cancel, &done)?;
+                    if bad > 0 {
+                        invalid.fetch_add(bad, Ordering::Relaxed);
+                    }
+                    Some(px)
+                })
+                .collect()
+        };
+        let pool =
+            if set.threads > 0 { rayon::ThreadPoolBuilder::new().num_threads(set.threads).build().ok() } else { None };
+        let finished = AtomicBool::new(false);
+        let caller = std::thread::current();
+        let (results, seconds) = std::thread::scope(|s| {
+            let handle = s.spawn(|| {
+                let r = match &pool {
+                    Some(p) => p.install(work),
+                    None => work(),
+                };
+                let seconds = start.elapsed().as_secs_f64();
+                finished.store(true, Ordering::Release);
+                caller.unpark();
+                (r, seconds)
+            });
+            while !finished.load(Ordering::Acquire) {
+                std::thread::park_timeout(Duration::from_millis(100));
+                if finished.load(Ordering::Acquire) {
+                    break;
+                }
+                if !cancel.load(Ordering::Relaxed) && !progress(done.load(Ordering::Relaxed) as f32 / total as f32) {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            }
+            handle.join().expect("render worker panicked")
+        });
+        if cancel.load(Ordering::Relaxed) || results.iter().any(Option::is_none) {
+            return Err(Cancelled);
+        }
+        for (t, px) in tiles.iter().zip(results) {
+            let mut px = px.into_iter().flatten();
+            for y in t.y0..t.y1 {
+                for x in t.x0..t.x1 {
+                    if let Some(st) = px.next() {
+                        self.pixels[(y * w + x) as usize] = st;
+                    }
+                }
+            }
+        }
+        self.samples += n;
+        self.invalid += invalid.load(Ordering::Relaxed);
+        self.seconds += seconds;
+        Ok(n)
+    }
+
+    /// The mean of the samples so far (black before the first round).
+    #[must_use]
+    pub fn framebuffer(&self) -> Framebuffer {
+        let mut fb = Framebuffer::new(self.width, self.height, self.set.aovs);
+        for (i, st) in self.pixels.iter().enumerate() {
+            let (c, a, al, n) = st.value(self.samples);
+            fb.color[i] = c;
+            fb.alpha[i] = a;
+            if let Some(v) = fb.albedo.as_mut() {
+                v[i] = al;
+            }
+            if let Some(v) = fb.normal.as_mut() {
+                v[i] = n;
+            }
+        }
+        let paths = self.width as u64 * self.height as u64 * self.samples as u64;
+        fb.stats = RenderStats {
+            seconds: self.seconds,
+            paths,
+            invalid: self.invalid,
+            paths_per_second: paths as f64 / self.seconds.max(1e-9),
+        };
+        fb
+    }
+}
+
 /// Renders `scene` (image size = the camera's). `progress(fraction)` is called on the calling
 /// thread about ten times a second and once at the end; returning `false` cancels the render.
 pub fn render(
@@ -661,91 +833,9 @@ pub fn render(
     set: &RenderSettings,
     progress: &mut dyn FnMut(f32) -> bool,
 ) -> Result<Framebuffer, Cancelled> {
-    use rayon::prelude::*;
-    let (w, h) = (scene.camera.width(), scene.camera.height());
-    let ts = set.tile_size.max(1);
-    let mut tiles = Vec::new();
-    for y0 in (0..h).step_by(ts as usize) {
-        for x0 in (0..w).step_by(ts as usize) {
-            tiles.push(Tile { x0, y0, x1: (x0 + ts).min(w), y1: (y0 + ts).min(h) });
-        }
-    }
-    // Progress counts pixel samples (a tile reports after each sample index).
-    let total_rows =
-        (tiles.iter().map(|t| (t.y1 - t.y0) as u64 * (t.x1 - t.x0) as u64).sum::<u64>() * u64::from(set.spp)).max(1);
-    let done = AtomicU64::new(0);
-    let invalid = AtomicU64::new(0);
-    let cancel = AtomicBool::new(false);
-    let start = Instant::now();
-
-    let work = || -> Vec<Option<Vec<PixelValue>>> {
-        tiles
-            .par_iter()
-            .map(|t| {
-                let (px, bad) = render_tile(scene, set, t, &cancel, &done)?;
-                if bad > 0 {
-                    invalid.fetch_add(bad, Ordering::Relaxed);
-                }
-                Some(px)
-            })
-            .collect()
-    };
-    let pool =
-        if set.threads > 0 { rayon::ThreadPoolBuilder::new().num_threads(set.threads).build().ok() } else { None };
-    let finished = AtomicBool::new(false);
-    let caller = std::thread::current();
-    let (results, seconds) = std::thread::scope(|s| {
-        let handle = s.spawn(|| {
-            let r = match &pool {
-                Some(p) => p.install(work),
-                None => work(),
-            };
-            let seconds = start.elapsed().as_secs_f64();
-            finished.store(true, Ordering::Release);
-            caller.unpark();
-            (r, seconds)
-        });
-        while !finished.load(Ordering::Acquire) {
-            std::thread::park_timeout(Duration::from_millis(100));
-            if finished.load(Ordering::Acquire) {
-                break;
-            }
-            if !cancel.load(Ordering::Relaxed) && !progress(done.load(Ordering::Relaxed) as f32 / total_rows as f32) {
-                cancel.store(true, Ordering::Relaxed);
-            }
-        }
-        handle.join().expect("render worker panicked")
-    });
-    if cancel.load(Ordering::Relaxed) {
-        return Err(Cancelled);
-    }
-    let mut fb = Framebuffer::new(w, h, set.aovs);
-    for (t, px) in tiles.iter().zip(results) {
-        let px = px.ok_or(Cancelled)?;
-        let mut k = 0;
-        for y in t.y0..t.y1 {
-            for x in t.x0..t.x1 {
-                let i = (y * w + x) as usize;
-                let (c, a, al, n) = px[k];
-                fb.color[i] = c;
-                fb.alpha[i] = a;
-                if let Some(v) = fb.albedo.as_mut() {
-                    v[i] = al;
-                }
-                if let Some(v) = fb.normal.as_mut() {
-                    v[i] = n;
-                }
-                k += 1;
-            }
-        }
-    }
-    let paths = w as u64 * h as u64 * set.spp as u64;
-    fb.stats = RenderStats {
-        seconds,
-        paths,
-        invalid: invalid.load(Ordering::Relaxed),
-        paths_per_second: paths as f64 / seconds.max(1e-9),
-    };
+    let mut p = Progressive::new(scene, set);
+    p.advance(scene, set.spp, progress)?;
+    let fb = p.framebuffer();
     progress(1.0);
     Ok(fb)
 }

@@ -16,7 +16,7 @@
 //! `env_rotation_deg`, `key_light`, `floor`.
 
 use crate::desc::{DefaultScene, EnvChoice, SceneDesc};
-use crate::integrator::{render, Framebuffer, RenderSettings};
+use crate::integrator::{render, Framebuffer, Progressive, RenderSettings};
 use lacquer::Material;
 use serde::Deserialize;
 use serde_json::Value;
@@ -203,6 +203,47 @@ pub fn render_job(json: &str, progress: &mut dyn FnMut(f32) -> bool) -> Result<F
     render(&scene, &job.settings(), progress).map_err(|_| JobError::Cancelled)
 }
 
+/// A job rendered in rounds (progressive display, see [`Progressive`]): the scene is built
+/// once, then each [`JobRender::advance`] adds samples per pixel.
+pub struct JobRender {
+    scene: crate::Scene,
+    progressive: Progressive,
+}
+
+impl JobRender {
+    /// Parses the job and builds its scene; no samples yet.
+    pub fn new(json: &str) -> Result<Self, JobError> {
+        let job = RenderJob::from_json(json)?;
+        let scene = job.scene()?;
+        let progressive = Progressive::new(&scene, &job.settings());
+        Ok(Self { scene, progressive })
+    }
+
+    /// Adds up to `n` samples per pixel (never beyond the job's `spp`); returns how many.
+    /// `progress(fraction of this round)` may cancel the round, which leaves the render as it was.
+    pub fn advance(&mut self, n: u32, progress: &mut dyn FnMut(f32) -> bool) -> Result<u32, JobError> {
+        self.progressive.advance(&self.scene, n, progress).map_err(|_| JobError::Cancelled)
+    }
+
+    /// Samples per pixel done so far.
+    #[must_use]
+    pub fn samples(&self) -> u32 {
+        self.progressive.samples()
+    }
+
+    /// The job's samples per pixel.
+    #[must_use]
+    pub fn target(&self) -> u32 {
+        self.progressive.target()
+    }
+
+    /// The mean of the samples so far.
+    #[must_use]
+    pub fn framebuffer(&self) -> Framebuffer {
+        self.progressive.framebuffer()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -232,5 +273,32 @@ mod tests {
         }
         let r = render_job(r#"{"width": 64, "height": 64, "spp": 4096}"#, &mut |_| false);
         assert_eq!(r.err(), Some(JobError::Cancelled));
+    }
+
+    #[test]
+    fn progressive_rounds_equal_the_one_shot_render_bit_for_bit() {
+        let job = r#"{"preset": "gold_flake_8", "width": 40, "height": 24, "spp": 7}"#;
+        let once = render_job(job, &mut |_| true).unwrap();
+        let mut p = JobRender::new(job).unwrap();
+        assert_eq!((p.samples(), p.target()), (0, 7));
+        assert!(p.framebuffer().color.iter().flatten().all(|v| *v == 0.0));
+        let mut rounds = Vec::new();
+        for n in [1, 2, 3, 5] {
+            rounds.push(p.advance(n, &mut |_| true).unwrap());
+        }
+        assert_eq!(rounds, [1, 2, 3, 1]); // never beyond spp
+        let fb = p.framebuffer();
+        assert_eq!(p.samples(), 7);
+        assert_eq!(fb.color, once.color);
+        assert_eq!(fb.alpha, once.alpha);
+        assert_eq!(fb.albedo, once.albedo);
+        assert_eq!(fb.normal, once.normal);
+        assert_eq!(fb.stats.paths, once.stats.paths);
+        assert!(once.color.iter().flatten().any(|v| *v > 0.0));
+        // A cancelled round (the callback runs after 0.1 s) leaves the render as it was.
+        let mut big = JobRender::new(r#"{"width": 64, "height": 64, "spp": 4096}"#).unwrap();
+        assert_eq!(big.advance(4096, &mut |_| false).err(), Some(JobError::Cancelled));
+        assert_eq!(big.samples(), 0);
+        assert_eq!(big.advance(1, &mut |_| true), Ok(1));
     }
 }

@@ -47,6 +47,6 @@ pub mod scene;
 pub mod shapes;
 pub mod sheet;
 
-pub use integrator::{render, render_quiet, Cancelled, Framebuffer, RenderSettings, RenderStats};
-pub use job::{render_job, JobError, RenderJob};
+pub use integrator::{render, render_quiet, Cancelled, Framebuffer, Progressive, RenderSettings, RenderStats};
+pub use job::{render_job, JobError, JobRender, RenderJob};
 pub use scene::{Scene, SceneBuilder};
