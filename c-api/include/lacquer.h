@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 4
+#define LQ_ABI_VERSION_MINOR 5
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -94,6 +94,18 @@
  * `LQ_ERR_INVALID_ELEMENT`); outputs are 0.
  */
 #define LQ_SAMPLE_INVALID_INPUT 4
+
+
+
+
+
+
+
+
+
+
+
+
 
 /**
  * Result of every fallible `lq_*` call. `LQ_OK` is 0; every other value is an error, and
@@ -197,6 +209,49 @@ typedef struct lq_image lq_image;
  * number of threads at once (every function takes it as `const`).
  */
 typedef struct lq_material lq_material;
+
+/**
+ * One parameter of a model, as `lacquer models` lists it. Every string is static storage
+ * owned by the library (valid for the life of the process; never free them).
+ */
+typedef struct {
+  /**
+   * JSON key, e.g. "flake_density".
+   */
+  const char *name;
+  /**
+   * An `lq_param_kind`.
+   */
+  int32_t kind;
+  /**
+   * Smallest valid value (scalar, colour component, integer; 0 otherwise).
+   */
+  double min;
+  /**
+   * Largest valid value.
+   */
+  double max;
+  /**
+   * Default: scalar / integer / bool (0 or 1) in [0]; colour in [0..3]; 0 otherwise.
+   */
+  double default_value[3];
+  /**
+   * Default of a choice, JSON or text parameter; "" otherwise.
+   */
+  const char *default_text;
+  /**
+   * The valid strings of a choice, separated by '|'; "" otherwise.
+   */
+  const char *choices;
+  /**
+   * Physical unit ("" when dimensionless), e.g. "mm", "µm", "%".
+   */
+  const char *unit;
+  /**
+   * One-line meaning.
+   */
+  const char *doc;
+} lq_param_spec;
 
 /**
  * Progress callback of `lq_render`: called on the thread that called `lq_render` (never on a
@@ -691,6 +746,62 @@ lq_status lq_choose_configuration(const lq_material *m,
                                   double max_error,
                                   size_t n,
                                   char **out_json);
+
+/**
+ * The number of parameters of a registered model (`lacquer models` lists them).
+ * LQ_ERR_UNKNOWN_NAME if no model has this name.
+ *
+ * # Safety
+ * `model` is NULL or a NUL-terminated string; `out_count` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_model_param_count(const char *model, size_t *out_count);
+
+/**
+ * Parameter `index` (0 ≤ index < `lq_model_param_count`) of a registered model: name, kind,
+ * range, default, choices, unit and meaning, in `lacquer models` order. Strings in `*out`
+ * are static (never free them). LQ_ERR_UNKNOWN_NAME for an unknown model,
+ * LQ_ERR_INVALID_ARGUMENT for an index out of range.
+ *
+ * # Safety
+ * `model` is NULL or a NUL-terminated string; `out` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_model_param(const char *model, size_t index, lq_param_spec *out);
+
+/**
+ * The value of one parameter of a material as JSON text (`0.5`, `[0.1, 0.2, 0.3]`, `true`,
+ * `"Al"`, or a structured value); `name` may also be "model" (the model name as a JSON
+ * string). Free the string with `lq_string_free`. LQ_ERR_UNKNOWN_NAME if the material's
+ * model has no such parameter.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `name` is NULL or a NUL-terminated string; `out_json` is
+ * NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_material_param_json(const lq_material *m,
+                                 const char *name,
+                                 char **out_json);
+
+/**
+ * The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
+ * `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL` and
+ * `LQ_LOBE_SPATIALLY_VARYING`, decided by the core from the model and its parameters (no
+ * sampling).
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_lobes` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_material_lobes(const lq_material *m, uint32_t *out_lobes);
+
+/**
+ * The albedo of the material's diffuse (pigment) part, linear Rec.709 RGB (3 floats; zero
+ * when it has no diffuse lobe): what an albedo AOV should show, without the specular
+ * highlight.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_rgb` is NULL or holds 3 writable floats.
+ */
+LQ_MUST_USE lq_status lq_material_diffuse_reflectance(const lq_material *m, float *out_rgb);
 
 /**
  * Parses a material: `{"model": "<name>", "<param>": value, ...}` or `{"preset": "<name>"}`.
