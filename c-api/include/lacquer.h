@@ -95,17 +95,35 @@
  */
 #define LQ_SAMPLE_INVALID_INPUT 4
 
+/**
+ * Lobe bit of `lq_material_lobes`: a diffuse (pigment) lobe.
+ */
+#define LQ_LOBE_DIFFUSE 1
 
+/**
+ * Lobe bit: a glossy lobe.
+ */
+#define LQ_LOBE_GLOSSY 2
 
+/**
+ * Lobe bit: a Dirac delta (mirror) lobe; samples from it carry `LQ_SAMPLE_DELTA`.
+ */
+#define LQ_LOBE_DELTA 4
 
+/**
+ * Lobe bit: the BRDF changes when both directions rotate about the normal.
+ */
+#define LQ_LOBE_ANISOTROPIC 8
 
+/**
+ * Lobe bit: the model is not reciprocal (`f(wi, wo) != f(wo, wi)` in general).
+ */
+#define LQ_LOBE_NON_RECIPROCAL 16
 
-
-
-
-
-
-
+/**
+ * Lobe bit: spatially varying (sparkle): the `*_spatial` calls differ from the plain ones.
+ */
+#define LQ_LOBE_SPATIALLY_VARYING 32
 
 /**
  * Result of every fallible `lq_*` call. `LQ_OK` is 0; every other value is an error, and
@@ -195,6 +213,51 @@ enum lq_check_level
 typedef enum lq_check_level lq_check_level;
 #else
 typedef int32_t lq_check_level;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
+ * Kind of a model parameter (`lq_param_spec.kind`).
+ */
+enum lq_param_kind
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : int32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * A number within [min, max].
+   */
+  LQ_PARAM_SCALAR = 0,
+  /**
+   * Linear Rec.709 RGB (or a grey scalar), each component within [min, max].
+   */
+  LQ_PARAM_COLOR = 1,
+  /**
+   * A whole number within [min, max].
+   */
+  LQ_PARAM_INTEGER = 2,
+  /**
+   * true / false.
+   */
+  LQ_PARAM_BOOL = 3,
+  /**
+   * One of the strings in `choices`.
+   */
+  LQ_PARAM_CHOICE = 4,
+  /**
+   * A structured JSON value (e.g. a list of lobes).
+   */
+  LQ_PARAM_JSON = 5,
+  /**
+   * A free string (e.g. a file path).
+   */
+  LQ_PARAM_TEXT = 6,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum lq_param_kind lq_param_kind;
+#else
+typedef int32_t lq_param_kind;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 

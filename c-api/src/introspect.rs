@@ -12,17 +12,27 @@ use std::ffi::{c_char, CString};
 use std::sync::OnceLock;
 
 /// Lobe bit of `lq_material_lobes`: a diffuse (pigment) lobe.
-pub const LQ_LOBE_DIFFUSE: u32 = bits::DIFFUSE;
+pub const LQ_LOBE_DIFFUSE: u32 = 1;
 /// Lobe bit: a glossy lobe.
-pub const LQ_LOBE_GLOSSY: u32 = bits::GLOSSY;
+pub const LQ_LOBE_GLOSSY: u32 = 2;
 /// Lobe bit: a Dirac delta (mirror) lobe; samples from it carry `LQ_SAMPLE_DELTA`.
-pub const LQ_LOBE_DELTA: u32 = bits::DELTA;
+pub const LQ_LOBE_DELTA: u32 = 4;
 /// Lobe bit: the BRDF changes when both directions rotate about the normal.
-pub const LQ_LOBE_ANISOTROPIC: u32 = bits::ANISOTROPIC;
+pub const LQ_LOBE_ANISOTROPIC: u32 = 8;
 /// Lobe bit: the model is not reciprocal (`f(wi, wo) != f(wo, wi)` in general).
-pub const LQ_LOBE_NON_RECIPROCAL: u32 = bits::NON_RECIPROCAL;
+pub const LQ_LOBE_NON_RECIPROCAL: u32 = 16;
 /// Lobe bit: spatially varying (sparkle): the `*_spatial` calls differ from the plain ones.
-pub const LQ_LOBE_SPATIALLY_VARYING: u32 = bits::SPATIALLY_VARYING;
+pub const LQ_LOBE_SPATIALLY_VARYING: u32 = 32;
+
+// The C constants are literals (cbindgen copies them); they must equal the core's bits.
+const _: () = assert!(
+    LQ_LOBE_DIFFUSE == bits::DIFFUSE
+        && LQ_LOBE_GLOSSY == bits::GLOSSY
+        && LQ_LOBE_DELTA == bits::DELTA
+        && LQ_LOBE_ANISOTROPIC == bits::ANISOTROPIC
+        && LQ_LOBE_NON_RECIPROCAL == bits::NON_RECIPROCAL
+        && LQ_LOBE_SPATIALLY_VARYING == bits::SPATIALLY_VARYING
+);
 
 /// Kind of a model parameter (`lq_param_spec.kind`).
 #[repr(i32)]
