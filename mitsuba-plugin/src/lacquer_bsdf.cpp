@@ -283,14 +283,25 @@ public:
     /// an impossible combination) raises a Mitsuba error naming the parameter and its range;
     /// the previous material and the previous values stay in place.
     void parameters_changed(const std::vector<std::string> &keys) override {
+        // A traversed value is a float32 copy: a slot still equal to the float32 of the value
+        // in use keeps that value exactly (editing one parameter must not round the others).
         std::vector<std::string> values = m_values;
         for (size_t i = 0; i < m_params.size(); ++i) {
+            std::vector<double> now = lacquer_detail::json_numbers(m_values[i]);
             if (m_params[i].numeric()) {
-                values[i] = lacquer_detail::json_number(scalar_of(m_scalar[i]));
+                double v = scalar_of(m_scalar[i]);
+                if (!(now.size() == 1 && (double) (float) now[0] == v))
+                    values[i] = lacquer_detail::json_number(v);
             } else if (m_params[i].color()) {
-                values[i] = "[" + lacquer_detail::json_number(scalar_of(m_color[i].x())) + "," +
-                            lacquer_detail::json_number(scalar_of(m_color[i].y())) + "," +
-                            lacquer_detail::json_number(scalar_of(m_color[i].z())) + "]";
+                if (now.size() == 1)
+                    now = { now[0], now[0], now[0] };
+                double c[3] = { scalar_of(m_color[i].x()), scalar_of(m_color[i].y()), scalar_of(m_color[i].z()) };
+                bool same = now.size() == 3;
+                for (int k = 0; k < 3 && same; ++k)
+                    same = (double) (float) now[k] == c[k];
+                if (!same)
+                    values[i] = "[" + lacquer_detail::json_number(c[0]) + "," + lacquer_detail::json_number(c[1]) +
+                                "," + lacquer_detail::json_number(c[2]) + "]";
             }
         }
         std::string error;
