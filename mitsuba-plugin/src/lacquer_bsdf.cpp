@@ -330,7 +330,7 @@ public:
                                              Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFSample, active);
         BSDFSample3f bs = dr::zeros<BSDFSample3f>();
-        bool smooth_on = m_has_smooth && ctx.is_enabled((BSDFFlags) m_smooth_type, 0),
+        bool smooth_on = smooth_enabled(ctx),
              delta_on = m_has_delta && ctx.is_enabled(BSDFFlags::DeltaReflection, m_delta_component);
         if (!smooth_on && !delta_on)
             return { bs, 0.f };
@@ -443,7 +443,7 @@ public:
     Spectrum eval(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
                   Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!m_has_smooth || !ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return 0.f;
         return eval_pdf_impl(si, wo, active, true, false).first;
     }
@@ -451,7 +451,7 @@ public:
     Float pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
               Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!m_has_smooth || !ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return 0.f;
         return eval_pdf_impl(si, wo, active, false, true).second;
     }
@@ -459,7 +459,7 @@ public:
     std::pair<Spectrum, Float> eval_pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si,
                                         const Vector3f &wo, Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!m_has_smooth || !ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return { 0.f, 0.f };
         return eval_pdf_impl(si, wo, active, true, true);
     }
@@ -711,6 +711,18 @@ private:
         duv = interleave(n, { dr::select(has, si.duv_dx.x(), huge), dr::select(has, si.duv_dx.y(), 0.f),
                               dr::select(has, si.duv_dy.x(), 0.f), dr::select(has, si.duv_dy.y(), huge) });
         return true;
+    }
+
+    /// True when the context enables the smooth component (component 0) through any of its
+    /// lobe kinds: a context asking for glossy reflection gets the diffuse + glossy component
+    /// (the C ABI evaluates the smooth lobes together).
+    bool smooth_enabled(const BSDFContext &ctx) const {
+        if (!m_has_smooth)
+            return false;
+        for (uint32_t bit : { +BSDFFlags::DiffuseReflection, +BSDFFlags::GlossyReflection })
+            if ((m_smooth_sampled & bit) && ctx.is_enabled((BSDFFlags) bit, 0))
+                return true;
+        return false;
     }
 
     /// Index of the parameter called `key`, or a Mitsuba error listing the model's parameters.
