@@ -245,3 +245,20 @@ def test_eval_diffuse_reflectance_is_pigment(scalar_rgb):
     assert np.allclose(np.array(bsdf.eval_diffuse_reflectance(si)), [0.2, 0.3, 0.4], rtol=1e-6)
     metal = mi.load_dict({"type": "lacquer", "model": "rough_conductor"})
     assert np.all(np.array(metal.eval_diffuse_reflectance(si)) == 0)
+
+
+def test_generated_properties_table_is_current():
+    """docs/mitsuba-properties.md is what tools/properties_table.py prints from the core's
+    model list today (regenerate it with the command in its first lines)."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import REPO, lacquer_cli
+
+    binary = lacquer_cli()
+    assert binary, "the lacquer CLI is needed (test.sh builds it)"
+    out = subprocess.run([sys.executable, str(REPO / "mitsuba-plugin/tools/properties_table.py"), binary],
+                         check=True, capture_output=True, text=True, env=dict(os.environ)).stdout
+    assert out == (REPO / "docs/mitsuba-properties.md").read_text(), \
+        "docs/mitsuba-properties.md is stale: python3 mitsuba-plugin/tools/properties_table.py > docs/mitsuba-properties.md"
