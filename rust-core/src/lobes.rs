@@ -192,8 +192,10 @@ mod tests {
         for (name, m) in materials() {
             let mut changed = false;
             for k in 0..64 {
-                let (t1, p1) = (0.1 + 1.3 * ((k * 37 % 64) as f64 / 64.0), 6.28 * ((k * 11 % 64) as f64 / 64.0));
-                let (t2, p2) = (0.1 + 1.3 * ((k * 13 % 64) as f64 / 64.0), 6.28 * ((k * 29 % 64) as f64 / 64.0));
+                let (t1, p1) =
+                    (0.1 + 1.3 * ((k * 37 % 64) as f64 / 64.0), std::f64::consts::TAU * ((k * 11 % 64) as f64 / 64.0));
+                let (t2, p2) =
+                    (0.1 + 1.3 * ((k * 13 % 64) as f64 / 64.0), std::f64::consts::TAU * ((k * 29 % 64) as f64 / 64.0));
                 let f0 = m.eval(dir(t1, p1), dir(t2, p2));
                 for rot in [0.4, 1.1, 2.3] {
                     let f1 = m.eval(dir(t1, p1 + rot), dir(t2, p2 + rot));
