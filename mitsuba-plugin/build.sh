@@ -6,7 +6,9 @@
 #   3. mitsuba-plugin/python/lacquer_mitsuba/plugins/lacquer.so (the BSDF), compiled against the
 #      wheel's headers and libmitsuba, linking liblacquer.a statically, and lacquer_path.so (a
 #      path tracer that keeps camera ray differentials, for sparkle);
-#   4. a .pth file so that `import lacquer_mitsuba` works in the venv.
+#   4. plugins/build_info.json (the mitsuba / drjit versions and variants built for) and a .pth
+#      file so that `import lacquer_mitsuba` works in the venv.
+# mitsuba-plugin/wheel.sh packs the result into a wheel (dist/lacquer_mitsuba-*.whl).
 # Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -87,6 +89,15 @@ build() {
 # only Mitsuba.
 build lacquer lacquer_bsdf.cpp "$lib" -Wl,--exclude-libs,ALL -lgcc_s -lutil -lrt -lpthread -lm -ldl
 build lacquer_path lacquer_path.cpp
+
+# What the plugins were built for: register() refuses to load them into another Mitsuba.
+"$py" - "$out_dir/build_info.json" "$with_llvm" <<'PYEOF'
+import importlib.metadata as m, json, sys
+variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb"] if sys.argv[2] == "1" else [])
+info = {"mitsuba": m.version("mitsuba"), "drjit": m.version("drjit"), "variants": variants}
+with open(sys.argv[1], "w") as f:
+    json.dump(info, f, indent=1)
+PYEOF
 
 step "lacquer_mitsuba on the venv's path"
 echo "$here/python" > "$site/lacquer_mitsuba.pth"

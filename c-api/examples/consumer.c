@@ -149,6 +149,65 @@ int main(void) {
     s = lq_eval(white, 1, inplace, wo, inplace);
     CHECK(s == LQ_ERR_INVALID_ARGUMENT && inplace[2] == 1, "status %d", s);
 
+
+    /* Typed queries: parameter specs, one parameter's value, lobes and diffuse albedo. */
+    size_t np = 0;
+    s = lq_model_param_count("coated_paint", &np);
+    CHECK(s == LQ_OK && np > 10, "coated_paint has %u params: %s", (unsigned)np, lq_last_error());
+    int found_density = 0, found_color = 0, found_choice = 0;
+    for (size_t i = 0; i < np; ++i) {
+        lq_param_spec spec;
+        s = lq_model_param("coated_paint", i, &spec);
+        CHECK(s == LQ_OK && spec.name && spec.name[0], "param %u: %s", (unsigned)i, lq_last_error());
+        if (strcmp(spec.name, "flake_density") == 0)
+            found_density = spec.kind == LQ_PARAM_SCALAR && spec.min == 0 && spec.max > spec.min;
+        if (strcmp(spec.name, "base_color") == 0)
+            found_color = spec.kind == LQ_PARAM_COLOR && spec.max == 1;
+        if (strcmp(spec.name, "flake_material") == 0)
+            found_choice = spec.kind == LQ_PARAM_CHOICE && strstr(spec.choices, "Al") != NULL &&
+                           strcmp(spec.default_text, "Al") == 0;
+    }
+    CHECK(found_density && found_color && found_choice, "specs: density %d colour %d choice %d",
+          found_density, found_color, found_choice);
+    lq_param_spec none;
+    s = lq_model_param("coated_paint", np, &none);
+    CHECK(s == LQ_ERR_INVALID_ARGUMENT, "index past the end: status %d", s);
+    s = lq_model_param_count("no_such_model", &np);
+    CHECK(s == LQ_ERR_UNKNOWN_NAME, "unknown model: status %d", s);
+
+    uint32_t lobes = 0;
+    s = lq_material_lobes(grey, &lobes);
+    CHECK(s == LQ_OK && lobes == LQ_LOBE_DIFFUSE, "lambert lobes %u", lobes);
+    float albedo[3];
+    s = lq_material_diffuse_reflectance(grey, albedo);
+    CHECK(s == LQ_OK && fabs(albedo[0] - 0.8) < 1e-6 && fabs(albedo[1] - 0.5) < 1e-6, "albedo %g", albedo[0]);
+    lq_material *paint = NULL;
+    s = lq_material_from_json("{\"model\": \"coated_paint\", \"coat_roughness\": 0, "
+                              "\"base_color\": [0.2, 0.3, 0.4], \"sparkle\": true}", &paint);
+    CHECK(s == LQ_OK, "%s", lq_last_error());
+    s = lq_material_lobes(paint, &lobes);
+    CHECK(s == LQ_OK && (lobes & LQ_LOBE_DIFFUSE) && (lobes & LQ_LOBE_GLOSSY) && (lobes & LQ_LOBE_DELTA) &&
+              !(lobes & LQ_LOBE_ANISOTROPIC),
+          "smooth-coat paint lobes %u", lobes);
+    s = lq_material_diffuse_reflectance(paint, albedo);
+    CHECK(s == LQ_OK && fabs(albedo[2] - 0.4) < 1e-6, "paint albedo %g", albedo[2]);
+    char *value = NULL;
+    s = lq_material_param_json(paint, "base_color", &value);
+    CHECK(s == LQ_OK && value && value[0] == '[', "base_color = %s", value ? value : "(null)");
+    lq_string_free(value);
+    value = NULL;
+    s = lq_material_param_json(paint, "flake_densty", &value);
+    CHECK(s == LQ_ERR_UNKNOWN_NAME && value == NULL && strstr(lq_last_error(), "flake_density"),
+          "misspelt parameter: %s", lq_last_error());
+    lq_material_free(paint);
+    lq_material *aniso = NULL;
+    s = lq_material_from_json("{\"model\": \"rough_conductor\", \"alpha_u\": 0.1, \"alpha_v\": 0.4}", &aniso);
+    CHECK(s == LQ_OK, "%s", lq_last_error());
+    s = lq_material_lobes(aniso, &lobes);
+    CHECK(s == LQ_OK && (lobes & LQ_LOBE_ANISOTROPIC) && (lobes & LQ_LOBE_GLOSSY) && !(lobes & LQ_LOBE_DIFFUSE),
+          "anisotropic conductor lobes %u", lobes);
+    lq_material_free(aniso);
+
     lq_material_free(white);
     lq_material_free(grey);
     lq_material_free(NULL);

@@ -96,6 +96,36 @@
 #define LQ_SAMPLE_INVALID_INPUT 4
 
 /**
+ * Lobe bit of `lq_material_lobes`: a diffuse (pigment) lobe.
+ */
+#define LQ_LOBE_DIFFUSE 1
+
+/**
+ * Lobe bit: a glossy lobe.
+ */
+#define LQ_LOBE_GLOSSY 2
+
+/**
+ * Lobe bit: a Dirac delta (mirror) lobe; samples from it carry `LQ_SAMPLE_DELTA`.
+ */
+#define LQ_LOBE_DELTA 4
+
+/**
+ * Lobe bit: the BRDF changes when both directions rotate about the normal.
+ */
+#define LQ_LOBE_ANISOTROPIC 8
+
+/**
+ * Lobe bit: the model is not reciprocal (`f(wi, wo) != f(wo, wi)` in general).
+ */
+#define LQ_LOBE_NON_RECIPROCAL 16
+
+/**
+ * Lobe bit: spatially varying (sparkle): the `*_spatial` calls differ from the plain ones.
+ */
+#define LQ_LOBE_SPATIALLY_VARYING 32
+
+/**
  * Result of every fallible `lq_*` call. `LQ_OK` is 0; every other value is an error, and
  * `lq_last_error()` then describes it. The numbers are part of the ABI: they never change
  * and new codes are only ever appended.
@@ -187,6 +217,51 @@ typedef int32_t lq_check_level;
 #endif // __cplusplus
 
 /**
+ * Kind of a model parameter (`lq_param_spec.kind`).
+ */
+enum lq_param_kind
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : int32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * A number within [min, max].
+   */
+  LQ_PARAM_SCALAR = 0,
+  /**
+   * Linear Rec.709 RGB (or a grey scalar), each component within [min, max].
+   */
+  LQ_PARAM_COLOR = 1,
+  /**
+   * A whole number within [min, max].
+   */
+  LQ_PARAM_INTEGER = 2,
+  /**
+   * true / false.
+   */
+  LQ_PARAM_BOOL = 3,
+  /**
+   * One of the strings in `choices`.
+   */
+  LQ_PARAM_CHOICE = 4,
+  /**
+   * A structured JSON value (e.g. a list of lobes).
+   */
+  LQ_PARAM_JSON = 5,
+  /**
+   * A free string (e.g. a file path).
+   */
+  LQ_PARAM_TEXT = 6,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum lq_param_kind lq_param_kind;
+#else
+typedef int32_t lq_param_kind;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * A rendered image. Free it with `lq_image_free`.
  */
 typedef struct lq_image lq_image;
@@ -205,6 +280,49 @@ typedef struct lq_material lq_material;
  * `spp` into rounds gives `lq_render`'s image bit for bit. One thread at a time per session.
  */
 typedef struct lq_render_session lq_render_session;
+
+/**
+ * One parameter of a model, as `lacquer models` lists it. Every string is static storage
+ * owned by the library (valid for the life of the process; never free them).
+ */
+typedef struct {
+  /**
+   * JSON key, e.g. "flake_density".
+   */
+  const char *name;
+  /**
+   * An `lq_param_kind`.
+   */
+  int32_t kind;
+  /**
+   * Smallest valid value (scalar, colour component, integer; 0 otherwise).
+   */
+  double min;
+  /**
+   * Largest valid value.
+   */
+  double max;
+  /**
+   * Default: scalar / integer / bool (0 or 1) in [0]; colour in [0..3]; 0 otherwise.
+   */
+  double default_value[3];
+  /**
+   * Default of a choice, JSON or text parameter; "" otherwise.
+   */
+  const char *default_text;
+  /**
+   * The valid strings of a choice, separated by '|'; "" otherwise.
+   */
+  const char *choices;
+  /**
+   * Physical unit ("" when dimensionless), e.g. "mm", "µm", "%".
+   */
+  const char *unit;
+  /**
+   * One-line meaning.
+   */
+  const char *doc;
+} lq_param_spec;
 
 /**
  * Progress callback of `lq_render`: called on the thread that called `lq_render` (never on a
@@ -699,6 +817,62 @@ lq_status lq_choose_configuration(const lq_material *m,
                                   double max_error,
                                   size_t n,
                                   char **out_json);
+
+/**
+ * The number of parameters of a registered model (`lacquer models` lists them).
+ * LQ_ERR_UNKNOWN_NAME if no model has this name.
+ *
+ * # Safety
+ * `model` is NULL or a NUL-terminated string; `out_count` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_model_param_count(const char *model, size_t *out_count);
+
+/**
+ * Parameter `index` (0 ≤ index < `lq_model_param_count`) of a registered model: name, kind,
+ * range, default, choices, unit and meaning, in `lacquer models` order. Strings in `*out`
+ * are static (never free them). LQ_ERR_UNKNOWN_NAME for an unknown model,
+ * LQ_ERR_INVALID_ARGUMENT for an index out of range.
+ *
+ * # Safety
+ * `model` is NULL or a NUL-terminated string; `out` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_model_param(const char *model, size_t index, lq_param_spec *out);
+
+/**
+ * The value of one parameter of a material as JSON text (`0.5`, `[0.1, 0.2, 0.3]`, `true`,
+ * `"Al"`, or a structured value); `name` may also be "model" (the model name as a JSON
+ * string). Free the string with `lq_string_free`. LQ_ERR_UNKNOWN_NAME if the material's
+ * model has no such parameter.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `name` is NULL or a NUL-terminated string; `out_json` is
+ * NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_material_param_json(const lq_material *m,
+                                 const char *name,
+                                 char **out_json);
+
+/**
+ * The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
+ * `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL` and
+ * `LQ_LOBE_SPATIALLY_VARYING`, decided by the core from the model and its parameters (no
+ * sampling).
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_lobes` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_material_lobes(const lq_material *m, uint32_t *out_lobes);
+
+/**
+ * The albedo of the material's diffuse (pigment) part, linear Rec.709 RGB (3 floats; zero
+ * when it has no diffuse lobe): what an albedo AOV should show, without the specular
+ * highlight.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_rgb` is NULL or holds 3 writable floats.
+ */
+LQ_MUST_USE lq_status lq_material_diffuse_reflectance(const lq_material *m, float *out_rgb);
 
 /**
  * Parses a material: `{"model": "<name>", "<param>": value, ...}` or `{"preset": "<name>"}`.

@@ -10,8 +10,11 @@
 //   sample() value = f_r * cos / pdf          lq_sample weight (identical definition)
 //   bs.pdf of a delta sample = probability    lq_sample pdf with LQ_SAMPLE_DELTA (identical)
 //   si.uv, si.duv_dx, si.duv_dy               uv, duv (sparkle), only with ray differentials
-//   component 0: the smooth lobes             (diffuse for lambert, glossy otherwise)
-//   component 1: the clearcoat mirror         LQ_SAMPLE_DELTA samples (smooth-coat paints)
+//   component 0: the smooth lobes             lq_material_lobes: LQ_LOBE_DIFFUSE / _GLOSSY
+//                                             (+ Anisotropic for LQ_LOBE_ANISOTROPIC)
+//   component 1 (or 0): the mirror lobe       LQ_LOBE_DELTA; LQ_SAMPLE_DELTA samples
+//   NonSymmetric, SpatiallyVarying flags      LQ_LOBE_NON_RECIPROCAL, _SPATIALLY_VARYING
+//   eval_diffuse_reflectance                  lq_material_diffuse_reflectance (pigment albedo)
 //
 // Variants: scalar_rgb, scalar_spectral (the RGB result is upsampled per evaluation with
 // Mitsuba's own sRGB model, Jakob & Hanika 2019, scaled for values above 1) and llvm_ad_rgb
@@ -21,8 +24,17 @@
 // with dr.JitFlag.SymbolicLoops and SymbolicCalls off).
 //
 // Parameters (see docs/mitsuba.md):
+//   model      string   a Lacquer model name (`lacquer models`), e.g. "coated_paint"
+//   preset     string   a Lacquer preset name (`lacquer presets`)
 //   material   string   Lacquer material JSON, e.g. {"model": "lambert", "albedo": 0.8}
-//   preset     string   a Lacquer preset name (exactly one of material / preset)
+//                       (exactly one of model / preset / material)
+//   <any parameter of the model>   typed: <float>/<integer> for scalars, <rgb> (or <float>,
+//                       grey) for colours, <boolean> for flags, <string> for choices, text
+//                       and JSON-valued parameters; overrides the preset's / JSON's value.
+//                       Names, kinds and ranges come from the core (lq_model_param), so the
+//                       plugin holds no parameter list. Every scalar and colour parameter is
+//                       in mi.traverse; parameters_changed rebuilds the material (a bad value
+//                       raises and keeps the previous material).
 //   tint       texture  optional reflectance-like multiplier in [0, 1] (e.g. a bitmap): scales
 //                       f_r, and so the sample weight; the pdf is unchanged
 //   footprint  bool     pass uv and the ray-differential footprint to spatially varying
@@ -37,6 +49,9 @@
 #include <lacquer.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -59,21 +74,128 @@ struct MaterialDeleter {
 };
 using MaterialPtr = std::shared_ptr<lq_material>;
 
-/// The value of `"key":` in compact canonical JSON (a string or a bare literal), or "".
-inline std::string json_field(const std::string &json, const std::string &key) {
-    std::string pat = "\"" + key + "\":";
-    size_t p = json.find(pat);
-    if (p == std::string::npos)
-        return "";
-    p += pat.size();
-    while (p < json.size() && json[p] == ' ')
-        ++p;
-    if (p < json.size() && json[p] == '"') {
-        size_t e = json.find('"', p + 1);
-        return e == std::string::npos ? "" : json.substr(p + 1, e - p - 1);
+/// A model parameter as the core describes it (lq_model_param).
+struct ParamInfo {
+    std::string name, unit, choices, doc;
+    int32_t kind = 0;
+    double min = 0, max = 0;
+
+    bool numeric() const { return kind == LQ_PARAM_SCALAR || kind == LQ_PARAM_INTEGER; }
+    bool color() const { return kind == LQ_PARAM_COLOR; }
+    /// "[0, 100] %" / "one of Al, Au" / "true or false": what the error messages show.
+    std::string range() const {
+        char buf[96];
+        switch (kind) {
+            case LQ_PARAM_SCALAR:
+            case LQ_PARAM_INTEGER:
+            case LQ_PARAM_COLOR:
+                std::snprintf(buf, sizeof buf, "[%g, %g]", min, max);
+                return std::string(buf) + (unit.empty() ? "" : " " + unit) +
+                       (kind == LQ_PARAM_COLOR ? " per component" : "") +
+                       (kind == LQ_PARAM_INTEGER ? " (whole numbers)" : "");
+            case LQ_PARAM_BOOL: return "true or false";
+            case LQ_PARAM_CHOICE: {
+                std::string c = choices;
+                std::replace(c.begin(), c.end(), '|', ',');
+                return "one of " + c;
+            }
+            case LQ_PARAM_JSON: return "JSON text";
+            default: return "a string";
+        }
     }
-    size_t e = json.find_first_of(",}", p);
-    return json.substr(p, e == std::string::npos ? std::string::npos : e - p);
+    const char *xml_tag() const {
+        switch (kind) {
+            case LQ_PARAM_SCALAR: return "<float>";
+            case LQ_PARAM_INTEGER: return "<integer> or <float>";
+            case LQ_PARAM_COLOR: return "<rgb> or <float>";
+            case LQ_PARAM_BOOL: return "<boolean>";
+            default: return "<string>";
+        }
+    }
+};
+
+/// The parameters of a model, from the core.
+inline std::vector<ParamInfo> model_params(const std::string &model) {
+    size_t n = 0;
+    lq_status s = lq_model_param_count(model.c_str(), &n);
+    if (s != LQ_OK)
+        Throw("lacquer: unknown model \"%s\" (%s): %s", model, lq_status_name(s), lq_last_error());
+    std::vector<ParamInfo> out(n);
+    for (size_t i = 0; i < n; ++i) {
+        lq_param_spec spec;
+        check(lq_model_param(model.c_str(), i, &spec), "lq_model_param");
+        out[i].name = spec.name;
+        out[i].unit = spec.unit;
+        out[i].choices = spec.choices;
+        out[i].doc = spec.doc;
+        out[i].kind = spec.kind;
+        out[i].min = spec.min;
+        out[i].max = spec.max;
+    }
+    return out;
+}
+
+/// One parameter's value as JSON text (lq_material_param_json).
+inline std::string param_json(const lq_material *m, const std::string &name) {
+    char *text = nullptr;
+    check(lq_material_param_json(m, name.c_str(), &text), "lq_material_param_json");
+    std::string out = text;
+    lq_string_free(text);
+    return out;
+}
+
+/// A JSON string literal.
+inline std::string json_string(const std::string &s) {
+    std::string out = "\"";
+    for (char c : s) {
+        if (c == '"' || c == '\\') {
+            out += '\\';
+            out += c;
+        } else if ((unsigned char) c < 0x20) {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\u%04x", c);
+            out += buf;
+        } else {
+            out += c;
+        }
+    }
+    return out + "\"";
+}
+
+/// The content of a JSON string literal without escapes (model names, choices).
+inline std::string unquote(const std::string &s) {
+    return s.size() >= 2 && s.front() == '"' ? s.substr(1, s.size() - 2) : s;
+}
+
+/// A number as JSON (exact for doubles; whole numbers without a fraction, for integers).
+inline std::string json_number(double v) {
+    if (!std::isfinite(v))
+        return "null"; // the core rejects it with the parameter's name and range
+    char buf[40];
+    if (v == std::floor(v) && std::fabs(v) < 1e15)
+        std::snprintf(buf, sizeof buf, "%.0f", v);
+    else
+        std::snprintf(buf, sizeof buf, "%.17g", v);
+    return buf;
+}
+
+/// Numbers of a canonical JSON value: `0.5` -> {0.5}, `[0.1,0.2,0.3]` -> {0.1, 0.2, 0.3},
+/// `true` -> {1}.
+inline std::vector<double> json_numbers(const std::string &text) {
+    std::vector<double> out;
+    if (text == "true" || text == "false")
+        return { text == "true" ? 1.0 : 0.0 };
+    const char *p = text.c_str();
+    while (*p) {
+        if ((*p >= '0' && *p <= '9') || *p == '-' || *p == '.') {
+            char *end = nullptr;
+            out.push_back(std::strtod(p, &end));
+            p = end;
+        } else {
+            ++p;
+        }
+    }
+    return out;
 }
 
 } // namespace lacquer_detail
@@ -86,57 +208,116 @@ public:
 
     LacquerBSDF(const Properties &props) : Base(props) {
         using namespace lacquer_detail;
-        bool has_material = props.has_property("material"),
-             has_preset = props.has_property("preset");
-        if (has_material == has_preset)
-            Throw("lacquer: give exactly one of \"material\" (material JSON, e.g. "
-                  "{\"model\": \"lambert\"}) or \"preset\" (a name from `lacquer presets`)");
+        int sources = (int) props.has_property("material") + (int) props.has_property("preset") +
+                      (int) props.has_property("model");
+        if (sources != 1)
+            Throw("lacquer: give exactly one of \"model\" (a name from `lacquer models`, e.g. "
+                  "<string name=\"model\" value=\"coated_paint\"/>), \"preset\" (a name from "
+                  "`lacquer presets`) or \"material\" (material JSON, e.g. {\"model\": \"lambert\"}); "
+                  "typed parameters then override its values");
 
+        // 1. The starting material: JSON, a preset or a model's defaults.
         lq_material *raw = nullptr;
-        if (has_material) {
-            std::string json = props.get<std::string>("material");
-            lq_status s = lq_material_from_json(json.c_str(), &raw);
-            if (s != LQ_OK)
-                Throw("lacquer: invalid \"material\" (%s): %s", lq_status_name(s), lq_last_error());
+        lq_status s;
+        const char *what;
+        if (props.has_property("material")) {
+            what = "material";
+            s = lq_material_from_json(props.get<std::string>("material").c_str(), &raw);
+        } else if (props.has_property("preset")) {
+            what = "preset";
+            s = lq_material_from_preset(props.get<std::string>("preset").c_str(), &raw);
         } else {
-            std::string name = props.get<std::string>("preset");
-            lq_status s = lq_material_from_preset(name.c_str(), &raw);
-            if (s != LQ_OK)
-                Throw("lacquer: invalid \"preset\" (%s): %s", lq_status_name(s), lq_last_error());
+            what = "model";
+            std::string json = "{\"model\": " + json_string(props.get<std::string>("model")) + "}";
+            s = lq_material_from_json(json.c_str(), &raw);
         }
-        m_material = MaterialPtr(raw, MaterialDeleter());
+        if (s != LQ_OK)
+            Throw("lacquer: invalid \"%s\" (%s): %s", what, lq_status_name(s), lq_last_error());
+        MaterialPtr start(raw, MaterialDeleter());
 
-        char *canonical = nullptr;
-        check(lq_material_to_json(raw, &canonical), "lq_material_to_json");
-        m_json = canonical;
-        lq_string_free(canonical);
-        m_model = json_field(m_json, "model");
+        // 2. Its model's parameters (names, kinds, ranges from the core) and current values.
+        m_model = unquote(param_json(raw, "model"));
+        m_params = model_params(m_model);
+        m_values.resize(m_params.size());
+        for (size_t i = 0; i < m_params.size(); ++i)
+            m_values[i] = param_json(raw, m_params[i].name);
+
+        // 3. Typed properties override those values.
+        for (const auto &it : props) {
+            std::string key(it.name());
+            if (key == "material" || key == "preset" || key == "model" || key == "tint" ||
+                key == "footprint")
+                continue;
+            size_t i = find_param(key);
+            m_values[i] = property_value(props, m_params[i], key, it.type());
+        }
+        std::string error;
+        if (!rebuild(m_values, error))
+            Throw("lacquer: invalid property for model \"%s\": %s", m_model, error);
+
+        // 4. Every scalar and colour parameter as a traversable value.
+        m_scalar.resize(m_params.size(), Float(0.f));
+        m_color.resize(m_params.size(), Color3f(0.f));
+        store_slots();
 
         if (props.has_property("tint"))
             m_tint = props.get_texture<Texture>("tint", 1.f);
-
-        // Spatially varying (sparkle) materials get uv and the ray-differential footprint.
-        m_spatial = props.get<bool>("footprint", true) && json_field(m_json, "sparkle") == "true";
-
-        uint32_t smooth = m_model == "lambert" ? +BSDFFlags::DiffuseReflection
-                                               : +BSDFFlags::GlossyReflection;
-        m_smooth_type = smooth;
-        m_has_delta = probe_delta();
-
-        m_components.clear();
-        m_components.push_back(smooth | BSDFFlags::FrontSide);
-        if (m_has_delta)
-            m_components.push_back(BSDFFlags::DeltaReflection | BSDFFlags::FrontSide);
-        m_flags = 0;
-        for (uint32_t c : m_components)
-            m_flags |= c;
-        if (m_spatial)
-            m_flags |= +BSDFFlags::NeedsDifferentials;
+        m_footprint = props.get<bool>("footprint", true);
+        update_flags();
     }
 
+    /// Every scalar and colour parameter of the model (non-differentiable: editing one
+    /// rebuilds the material in parameters_changed), plus the tint texture.
     void traverse(TraversalCallback *cb) override {
+        for (size_t i = 0; i < m_params.size(); ++i) {
+            if (m_params[i].numeric())
+                cb->put(m_params[i].name, m_scalar[i], ParamFlags::NonDifferentiable);
+            else if (m_params[i].color())
+                cb->put(m_params[i].name, m_color[i], ParamFlags::NonDifferentiable);
+        }
         if (m_tint)
             cb->put("tint", m_tint, ParamFlags::NonDifferentiable);
+    }
+
+    /// Rebuilds the material from the traversed values. An invalid value (out of range, NaN,
+    /// an impossible combination) raises a Mitsuba error naming the parameter and its range;
+    /// the previous material and the previous values stay in place.
+    void parameters_changed(const std::vector<std::string> &keys) override {
+        // A traversed value is a float32 copy: a slot still equal to the float32 of the value
+        // in use keeps that value exactly (editing one parameter must not round the others).
+        std::vector<std::string> values = m_values;
+        for (size_t i = 0; i < m_params.size(); ++i) {
+            std::vector<double> now = lacquer_detail::json_numbers(m_values[i]);
+            if (m_params[i].numeric()) {
+                double v = scalar_of(m_scalar[i]);
+                if (!(now.size() == 1 && (double) (float) now[0] == v))
+                    values[i] = lacquer_detail::json_number(v);
+            } else if (m_params[i].color()) {
+                if (now.size() == 1)
+                    now = { now[0], now[0], now[0] };
+                double c[3] = { scalar_of(m_color[i].x()), scalar_of(m_color[i].y()), scalar_of(m_color[i].z()) };
+                bool same = now.size() == 3;
+                for (int k = 0; k < 3 && same; ++k)
+                    same = (double) (float) now[k] == c[k];
+                if (!same)
+                    values[i] = "[" + lacquer_detail::json_number(c[0]) + "," + lacquer_detail::json_number(c[1]) +
+                                "," + lacquer_detail::json_number(c[2]) + "]";
+            }
+        }
+        std::string error;
+        if (values != m_values) {
+            if (!rebuild(values, error)) {
+                store_slots(); // back to the values of the material in use
+                std::string changed;
+                for (const std::string &k : keys)
+                    changed += (changed.empty() ? "" : ", ") + k;
+                Throw("lacquer: invalid parameter value (%s) for model \"%s\": %s. The previous "
+                      "material is kept.", changed.empty() ? std::string("?") : changed, m_model, error);
+            }
+            m_values = values;
+            update_flags();
+        }
+        Base::parameters_changed(keys);
     }
 
     // ------------------------------------------------------------------------------------
@@ -149,8 +330,8 @@ public:
                                              Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFSample, active);
         BSDFSample3f bs = dr::zeros<BSDFSample3f>();
-        bool smooth_on = ctx.is_enabled((BSDFFlags) m_smooth_type, 0),
-             delta_on = m_has_delta && ctx.is_enabled(BSDFFlags::DeltaReflection, 1);
+        bool smooth_on = smooth_enabled(ctx),
+             delta_on = m_has_delta && ctx.is_enabled(BSDFFlags::DeltaReflection, m_delta_component);
         if (!smooth_on && !delta_on)
             return { bs, 0.f };
 
@@ -177,8 +358,8 @@ public:
             bs.wo = Vector3f(wi[0], wi[1], wi[2]);
             bs.pdf = pdf;
             bs.eta = 1.f;
-            bs.sampled_type = delta ? +BSDFFlags::DeltaReflection : m_smooth_type;
-            bs.sampled_component = delta ? 1u : 0u;
+            bs.sampled_type = delta ? +BSDFFlags::DeltaReflection : m_smooth_sampled;
+            bs.sampled_component = delta ? m_delta_component : 0u;
             UnpolarizedSpectrum value = from_rgb(weight, si);
             if (m_tint)
                 value *= m_tint->eval(si, active);
@@ -219,8 +400,8 @@ public:
                 bs.wo = dr::select(ok, Vector3f(Float(wi_x), Float(wi_y), Float(wi_z)), 0.f);
                 bs.pdf = dr::select(ok, pdf_v, 0.f);
                 bs.eta = 1.f;
-                bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_type));
-                bs.sampled_component = dr::select(delta, UInt32(1u), UInt32(0u));
+                bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_sampled));
+                bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(0u));
                 UnpolarizedSpectrum value{ Float(w_r), Float(w_g), Float(w_b) };
                 if (m_tint)
                     value *= m_tint->eval(si, active);
@@ -249,8 +430,8 @@ public:
             bs.wo = dr::select(ok, wi_v, 0.f);
             bs.pdf = dr::select(ok, pdf_v, 0.f);
             bs.eta = 1.f;
-            bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_type));
-            bs.sampled_component = dr::select(delta, UInt32(1u), UInt32(0u));
+            bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_sampled));
+            bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(0u));
             Vector3f w = deinterleave3(weight, n);
             UnpolarizedSpectrum value(w.x(), w.y(), w.z());
             if (m_tint)
@@ -262,7 +443,7 @@ public:
     Spectrum eval(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
                   Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return 0.f;
         return eval_pdf_impl(si, wo, active, true, false).first;
     }
@@ -270,7 +451,7 @@ public:
     Float pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
               Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return 0.f;
         return eval_pdf_impl(si, wo, active, false, true).second;
     }
@@ -278,9 +459,18 @@ public:
     std::pair<Spectrum, Float> eval_pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si,
                                         const Vector3f &wo, Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!ctx.is_enabled((BSDFFlags) m_smooth_type, 0))
+        if (!smooth_enabled(ctx))
             return { 0.f, 0.f };
         return eval_pdf_impl(si, wo, active, true, true);
+    }
+
+    /// The pigment / diffuse albedo from the core (lq_material_diffuse_reflectance), times
+    /// the tint: no clearcoat highlight in albedo AOVs.
+    Spectrum eval_diffuse_reflectance(const SurfaceInteraction3f &si, Mask active) const override {
+        UnpolarizedSpectrum value = from_rgb(m_diffuse, si);
+        if (m_tint)
+            value *= m_tint->eval(si, active);
+        return depolarizer<Spectrum>(value) & active;
     }
 
     std::string to_string() const override {
@@ -288,6 +478,7 @@ public:
         oss << "LacquerBSDF[" << std::endl
             << "  model = \"" << m_model << "\"," << std::endl
             << "  material = " << m_json << "," << std::endl
+            << "  lobes = " << m_lobes << " (LQ_LOBE_* bits)," << std::endl
             << "  delta_lobe = " << (m_has_delta ? "true" : "false") << "," << std::endl
             << "  footprint = " << (m_spatial ? "true" : "false") << "," << std::endl
             << "  tint = " << (m_tint ? string::indent(m_tint) : std::string("none")) << std::endl
@@ -522,31 +713,183 @@ private:
         return true;
     }
 
-    /// True when the material samples a Dirac lobe (smooth clearcoat): sampled over a grid of
-    /// lobe numbers and view angles (the mirror lobe is selected in proportion to the coat's
-    /// Fresnel reflectance, large at grazing angles).
-    bool probe_delta() const {
-        const int nu = 32;
-        const float cosines[] = { 1.f, 0.5f, 0.1f, 0.02f };
-        for (float c : cosines) {
-            float wo[3] = { std::sqrt(std::max(0.f, 1.f - c * c)), 0.f, c };
-            for (int i = 0; i < nu; ++i) {
-                float u[3] = { (i + 0.5f) / nu, 0.37f, 0.61f }, wi[3], w[3], pdf;
-                uint32_t flags = 0;
-                lacquer_detail::check(lq_sample_one(m_material.get(), wo, u, wi, w, &pdf, &flags),
-                                      "lq_sample_one");
-                if (flags & LQ_SAMPLE_DELTA)
-                    return true;
+    /// True when the context enables the smooth component (component 0) through any of its
+    /// lobe kinds: a context asking for glossy reflection gets the diffuse + glossy component
+    /// (the C ABI evaluates the smooth lobes together).
+    bool smooth_enabled(const BSDFContext &ctx) const {
+        if (!m_has_smooth)
+            return false;
+        for (uint32_t bit : { +BSDFFlags::DiffuseReflection, +BSDFFlags::GlossyReflection })
+            if ((m_smooth_sampled & bit) && ctx.is_enabled((BSDFFlags) bit, 0))
+                return true;
+        return false;
+    }
+
+    /// Index of the parameter called `key`, or a Mitsuba error listing the model's parameters.
+    size_t find_param(const std::string &key) const {
+        for (size_t i = 0; i < m_params.size(); ++i)
+            if (m_params[i].name == key)
+                return i;
+        std::string names;
+        for (const auto &p : m_params)
+            names += (names.empty() ? "" : ", ") + p.name;
+        Throw("lacquer: unknown property \"%s\": model \"%s\" has the parameters %s (see `lacquer "
+              "models`), besides model, preset, material, tint and footprint", key, m_model, names);
+    }
+
+    /// A typed Mitsuba property as the parameter's JSON value, checked against its kind and
+    /// range (the core checks again when the material is built).
+    static std::string property_value(const Properties &props, const lacquer_detail::ParamInfo &p,
+                                      const std::string &key, Properties::Type type) {
+        using namespace lacquer_detail;
+        using T = Properties::Type;
+        auto wrong = [&]() -> std::string {
+            Throw("lacquer: property \"%s\" has the wrong type: give %s (%s; %s)", key, p.xml_tag(),
+                  p.range(), p.doc);
+        };
+        auto in_range = [&](double v) {
+            if (!(v >= p.min && v <= p.max))
+                Throw("lacquer: property \"%s\" = %g is out of range: it takes %s (%s)", key, v,
+                      p.range(), p.doc);
+            return json_number(v);
+        };
+        switch (p.kind) {
+            case LQ_PARAM_SCALAR:
+            case LQ_PARAM_INTEGER:
+                if (type != T::Float && type != T::Integer)
+                    return wrong();
+                return in_range(props.get<double>(key));
+            case LQ_PARAM_COLOR: {
+                if (type == T::Float || type == T::Integer)
+                    return in_range(props.get<double>(key));
+                if (type == T::Color || type == T::Vector) {
+                    Color<double, 3> c = props.get<Color<double, 3>>(key);
+                    return "[" + in_range(c.x()) + "," + in_range(c.y()) + "," + in_range(c.z()) + "]";
+                }
+                if (type == T::Object)
+                    Throw("lacquer: property \"%s\" is a texture: textured parameters are not "
+                          "supported yet; give %s (%s) or use \"tint\" for a texture", key,
+                          p.xml_tag(), p.range());
+                return wrong();
+            }
+            case LQ_PARAM_BOOL:
+                if (type != T::Bool)
+                    return wrong();
+                return props.get<bool>(key) ? "true" : "false";
+            case LQ_PARAM_CHOICE: {
+                if (type != T::String)
+                    return wrong();
+                std::string v = props.get<std::string>(key);
+                std::string all = "|" + p.choices + "|";
+                if (all.find("|" + v + "|") == std::string::npos)
+                    Throw("lacquer: property \"%s\" = \"%s\" is not valid: it takes %s (%s)", key, v,
+                          p.range(), p.doc);
+                return json_string(v);
+            }
+            case LQ_PARAM_JSON:
+                if (type != T::String)
+                    return wrong();
+                return props.get<std::string>(key);
+            default:
+                if (type != T::String)
+                    return wrong();
+                return json_string(props.get<std::string>(key));
+        }
+    }
+
+    /// Builds the material from parameter values (JSON text per parameter); on success it
+    /// replaces the current one, on failure `error` says why and nothing changes.
+    bool rebuild(const std::vector<std::string> &values, std::string &error) {
+        std::string json = "{\"model\": " + lacquer_detail::json_string(m_model);
+        for (size_t i = 0; i < m_params.size(); ++i)
+            json += ", " + lacquer_detail::json_string(m_params[i].name) + ": " + values[i];
+        json += "}";
+        lq_material *raw = nullptr;
+        lq_status s = lq_material_from_json(json.c_str(), &raw);
+        if (s != LQ_OK) {
+            error = std::string(lq_status_name(s)) + ": " + lq_last_error();
+            return false;
+        }
+        m_material = lacquer_detail::MaterialPtr(raw, lacquer_detail::MaterialDeleter());
+        char *canonical = nullptr;
+        lacquer_detail::check(lq_material_to_json(raw, &canonical), "lq_material_to_json");
+        m_json = canonical;
+        lq_string_free(canonical);
+        return true;
+    }
+
+    /// The traversable values from the current parameter values.
+    void store_slots() {
+        for (size_t i = 0; i < m_params.size(); ++i) {
+            std::vector<double> v = lacquer_detail::json_numbers(m_values[i]);
+            if (m_params[i].numeric() && v.size() == 1) {
+                m_scalar[i] = Float((float) v[0]);
+            } else if (m_params[i].color()) {
+                if (v.size() == 1)
+                    v = { v[0], v[0], v[0] };
+                if (v.size() == 3)
+                    m_color[i] = Color3f((float) v[0], (float) v[1], (float) v[2]);
             }
         }
-        return false;
+    }
+
+    template <typename T> static double scalar_of(const T &v) {
+        if constexpr (dr::is_jit_v<T>)
+            return dr::width(v) == 0 ? std::nan("") : (double) dr::slice(v, 0);
+        else
+            return (double) v;
+    }
+
+    /// Mitsuba's flags and components from the core's lobe report (lq_material_lobes) and
+    /// the diffuse albedo (lq_material_diffuse_reflectance).
+    void update_flags() {
+        uint32_t lobes = 0;
+        lacquer_detail::check(lq_material_lobes(m_material.get(), &lobes), "lq_material_lobes");
+        lacquer_detail::check(lq_material_diffuse_reflectance(m_material.get(), m_diffuse),
+                              "lq_material_diffuse_reflectance");
+        m_lobes = lobes;
+        m_spatial = m_footprint && (lobes & LQ_LOBE_SPATIALLY_VARYING);
+        uint32_t smooth = 0;
+        if (lobes & LQ_LOBE_DIFFUSE)
+            smooth |= +BSDFFlags::DiffuseReflection;
+        if (lobes & LQ_LOBE_GLOSSY)
+            smooth |= +BSDFFlags::GlossyReflection;
+        m_smooth_sampled = smooth;
+        if (smooth && (lobes & LQ_LOBE_ANISOTROPIC))
+            smooth |= +BSDFFlags::Anisotropic;
+        m_smooth_type = smooth;
+        m_has_smooth = smooth != 0;
+        m_has_delta = (lobes & LQ_LOBE_DELTA) != 0;
+        m_components.clear();
+        if (m_has_smooth)
+            m_components.push_back(smooth | BSDFFlags::FrontSide);
+        m_delta_component = (uint32_t) m_components.size();
+        if (m_has_delta)
+            m_components.push_back(BSDFFlags::DeltaReflection | BSDFFlags::FrontSide);
+        m_flags = 0;
+        for (uint32_t c : m_components)
+            m_flags |= c;
+        if (lobes & LQ_LOBE_NON_RECIPROCAL)
+            m_flags |= +BSDFFlags::NonSymmetric;
+        if ((lobes & LQ_LOBE_SPATIALLY_VARYING) || (m_tint && m_tint->is_spatially_varying()))
+            m_flags |= +BSDFFlags::SpatiallyVarying;
+        if (m_spatial)
+            m_flags |= +BSDFFlags::NeedsDifferentials;
     }
 
     lacquer_detail::MaterialPtr m_material;
     std::string m_json, m_model;
+    std::vector<lacquer_detail::ParamInfo> m_params;
+    /// JSON text of each parameter of the material in use.
+    std::vector<std::string> m_values;
+    /// Traversable copies (scalar / colour parameters; the other entries are unused). Never
+    /// resized after construction: mi.traverse holds pointers to them.
+    std::vector<Float> m_scalar;
+    std::vector<Color3f> m_color;
     ref<Texture> m_tint;
-    bool m_spatial = false, m_has_delta = false;
-    uint32_t m_smooth_type = 0;
+    float m_diffuse[3] = { 0.f, 0.f, 0.f };
+    bool m_footprint = true, m_spatial = false, m_has_smooth = true, m_has_delta = false;
+    uint32_t m_smooth_type = 0, m_smooth_sampled = 0, m_delta_component = 1, m_lobes = 0;
 
     MI_TRAVERSE_CB(Base, m_tint)
 };

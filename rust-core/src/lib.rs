@@ -37,6 +37,7 @@ pub mod fit;
 pub mod frame;
 pub mod fresnel;
 pub mod lanes;
+pub mod lobes;
 pub mod material;
 pub mod math;
 pub mod measured;

@@ -106,6 +106,20 @@ impl Material {
         self.model.spatially_varying()
     }
 
+    /// The kinds of lobes this material has: a bit set of [`crate::lobes::bits`] (diffuse,
+    /// glossy, delta, anisotropic, non-reciprocal, spatially varying).
+    #[must_use]
+    pub fn lobes(&self) -> u32 {
+        crate::lobes::lobes(self)
+    }
+
+    /// The albedo of the diffuse (pigment) part, linear Rec.709; zero without one. What a
+    /// renderer's albedo AOV should show (not the specular highlight).
+    #[must_use]
+    pub fn diffuse_reflectance(&self) -> [f64; 3] {
+        crate::lobes::diffuse_reflectance(self)
+    }
+
     /// Validated parameters, defaults included.
     #[must_use]
     pub fn params(&self) -> &Params {

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import json as _json
-from ctypes import byref, c_bool, c_void_p
+from ctypes import byref, c_bool, c_uint32, c_void_p
 from typing import Any, NamedTuple, Optional, Union
 
 import numpy as np
@@ -54,6 +54,12 @@ __all__ = [
     "RenderSession",
     "CancelledError",
     "abi_version",
+    "LOBE_DIFFUSE",
+    "LOBE_GLOSSY",
+    "LOBE_DELTA",
+    "LOBE_ANISOTROPIC",
+    "LOBE_NON_RECIPROCAL",
+    "LOBE_SPATIALLY_VARYING",
     "set_thread_count",
     "choose_configuration",
     "simd_level",
@@ -214,6 +220,11 @@ def _ptr(a: Optional[np.ndarray]):
 # --- materials ---------------------------------------------------------------------------
 
 
+#: Lobe bits of :meth:`Material.lobes` (the C ABI's ``LQ_LOBE_*``).
+LOBE_DIFFUSE, LOBE_GLOSSY, LOBE_DELTA = 1, 2, 4
+LOBE_ANISOTROPIC, LOBE_NON_RECIPROCAL, LOBE_SPATIALLY_VARYING = 8, 16, 32
+
+
 class Material:
     """An immutable material from the library.
 
@@ -285,6 +296,21 @@ class Material:
         out = c_void_p()
         _check(_native.lib.lq_material_to_json(self._h(), byref(out)))
         return _native.take_string(out)
+
+    def lobes(self) -> int:
+        """The kinds of lobes (``lq_material_lobes``): a bit set of :data:`LOBE_DIFFUSE`,
+        :data:`LOBE_GLOSSY`, :data:`LOBE_DELTA`, :data:`LOBE_ANISOTROPIC`,
+        :data:`LOBE_NON_RECIPROCAL`, :data:`LOBE_SPATIALLY_VARYING`."""
+        out = c_uint32()
+        _check(_native.lib.lq_material_lobes(self._h(), byref(out)))
+        return int(out.value)
+
+    def diffuse_reflectance(self) -> np.ndarray:
+        """The diffuse / pigment albedo, linear Rec.709 (3 floats; zero without a diffuse
+        lobe), ``lq_material_diffuse_reflectance``."""
+        out = np.zeros(3, dtype=np.float32)
+        _check(_native.lib.lq_material_diffuse_reflectance(self._h(), _ptr(out)))
+        return out
 
     def to_dict(self) -> dict:
         """:meth:`to_json` parsed."""

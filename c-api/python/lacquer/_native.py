@@ -73,6 +73,8 @@ _SIGNATURES = {
     "lq_material_from_preset": (c_int32, [c_char_p, POINTER(c_void_p)]),
     "lq_material_free": (None, [c_void_p]),
     "lq_material_to_json": (c_int32, [c_void_p, _STR_OUT]),
+    "lq_material_lobes": (c_int32, [c_void_p, U32]),
+    "lq_material_diffuse_reflectance": (c_int32, [c_void_p, F32]),
     "lq_eval": (c_int32, [c_void_p, c_size_t, F32, F32, F32]),
     "lq_pdf": (c_int32, [c_void_p, c_size_t, F32, F32, F32]),
     "lq_eval_pdf": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32]),

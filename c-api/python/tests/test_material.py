@@ -209,3 +209,16 @@ except ImportError as e:
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "refused:" in r.stdout and "ABI 1.0" in r.stdout, r.stdout
+
+
+def test_lobes_and_diffuse_reflectance():
+    """lq_material_lobes / lq_material_diffuse_reflectance through the package."""
+    paint = lacquer.Material({"model": "coated_paint", "coat_roughness": 0, "base_color": [0.2, 0.3, 0.4]})
+    lobes = paint.lobes()
+    assert lobes & lacquer.LOBE_DIFFUSE and lobes & lacquer.LOBE_DELTA and lobes & lacquer.LOBE_GLOSSY
+    assert not lobes & lacquer.LOBE_ANISOTROPIC
+    assert np.allclose(paint.diffuse_reflectance(), [0.2, 0.3, 0.4], rtol=1e-6)
+    conductor = lacquer.Material({"model": "rough_conductor", "alpha_u": 0.1, "alpha_v": 0.3})
+    assert conductor.lobes() & lacquer.LOBE_ANISOTROPIC
+    assert np.all(conductor.diffuse_reflectance() == 0)
+    assert lacquer.Material({"model": "phong"}).lobes() & lacquer.LOBE_NON_RECIPROCAL

@@ -21,9 +21,10 @@ restores them afterwards).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 
-__all__ = ["register", "plugin_dir", "plugin_path", "native_variants", "wavefront", "LacquerError"]
+__all__ = ["register", "plugin_dir", "plugin_path", "build_info", "native_variants", "wavefront", "LacquerError"]
 
 #: Variants the native plugin registers (when built with the llvm variant).
 native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
@@ -43,6 +44,28 @@ def plugin_dir() -> str:
 def plugin_path() -> str:
     """Path of the native plugin (it may not exist if build.sh has not run)."""
     return os.path.join(_HERE, "plugins", "lacquer.so")
+
+
+def build_info() -> dict:
+    """What the native plugin was built for (``plugins/build_info.json``, written by build.sh):
+    ``{"mitsuba": "3.9.1", "drjit": ..., "variants": [...]}``; ``{}`` when it is not built."""
+    path = os.path.join(_HERE, "plugins", "build_info.json")
+    if not os.path.exists(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
+
+
+def _version_mismatch(mi) -> str | None:
+    """A message when the plugin was built for another Mitsuba than the one imported (loading
+    it there could crash: C++ classes and their layout change between releases)."""
+    built = build_info().get("mitsuba")
+    running = getattr(mi, "__version__", None)
+    if built and running and built != running:
+        return (f"the native lacquer plugin was built for Mitsuba {built}, but Mitsuba {running} is "
+                f"imported: install mitsuba=={built} (the wheel lacquer-mitsuba depends on it) or "
+                "rebuild the plugin against this Mitsuba (mitsuba-plugin/build.sh, docs/mitsuba.md)")
+    return None
 
 
 def _native_has_variant(mi, variant: str) -> bool:
@@ -70,17 +93,24 @@ def register(fallback: bool = True, python_name: str | None = None) -> str:
     variant = mi.variant()
     if variant is None:
         raise LacquerError("set a Mitsuba variant first (mi.set_variant(...))")
+    mismatch = _version_mismatch(mi) if os.path.exists(plugin_path()) else None
+    if mismatch and not fallback:
+        raise LacquerError(mismatch)
     fr = mi.file_resolver()
-    if not any(os.path.abspath(str(p)) == _HERE for p in fr):
+    if not mismatch and not any(os.path.abspath(str(p)) == _HERE for p in fr):
         fr.prepend(_HERE)
     if python_name:
         from . import fallback as fb
 
         fb.register_python_bsdf(python_name)
-    if _native_has_variant(mi, variant):
+    if not mismatch and _native_has_variant(mi, variant):
         return "native"
     if not fallback:
         raise LacquerError(_missing_message(variant))
+    if mismatch:
+        import warnings
+
+        warnings.warn(mismatch + "; using the Python fallback", stacklevel=2)
     try:
         from . import fallback as fb
     except ImportError as e:

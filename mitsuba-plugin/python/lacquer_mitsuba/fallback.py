@@ -11,7 +11,6 @@ calls it once per interaction, through Python: correct but slow (use the native 
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 
@@ -93,26 +92,31 @@ def _make_class():
                 raise RuntimeError('lacquer: give exactly one of "material" (material JSON) or "preset"')
             self.material = lq.Material(props["material"] if has_m else {"preset": props["preset"]})
             self.tint = props.get_texture("tint", 1.0) if "tint" in props else None
-            model = json.loads(self.material.to_json()).get("model")
-            self.smooth = mi.BSDFFlags.DiffuseReflection if model == "lambert" else mi.BSDFFlags.GlossyReflection
-            self.has_delta = self._probe_delta()
-            comps = [self.smooth | mi.BSDFFlags.FrontSide]
+            # Flags from the core (lq_material_lobes), as the native plugin sets them.
+            lobes = self.material.lobes()
+            smooth = 0
+            if lobes & lq.LOBE_DIFFUSE:
+                smooth |= int(mi.BSDFFlags.DiffuseReflection)
+            if lobes & lq.LOBE_GLOSSY:
+                smooth |= int(mi.BSDFFlags.GlossyReflection)
+            self.smooth = smooth
+            self.has_delta = bool(lobes & lq.LOBE_DELTA)
+            self.delta_component = 1 if smooth else 0
+            comps = []
+            if smooth:
+                aniso = int(mi.BSDFFlags.Anisotropic) if lobes & lq.LOBE_ANISOTROPIC else 0
+                comps.append(smooth | aniso | int(mi.BSDFFlags.FrontSide))
             if self.has_delta:
-                comps.append(mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide)
-            self.m_components = [int(c) for c in comps]
+                comps.append(int(mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide))
+            self.m_components = comps
             flags = 0
             for c in self.m_components:
                 flags |= c
+            if lobes & lq.LOBE_NON_RECIPROCAL:
+                flags |= int(mi.BSDFFlags.NonSymmetric)
+            if lobes & lq.LOBE_SPATIALLY_VARYING:
+                flags |= int(mi.BSDFFlags.SpatiallyVarying)
             self.m_flags = flags
-
-        def _probe_delta(self):
-            for c in (1.0, 0.5, 0.1, 0.02):
-                wo = np.tile([np.sqrt(1 - c * c), 0.0, c], (32, 1))
-                u = np.stack([(np.arange(32) + 0.5) / 32, np.full(32, 0.37), np.full(32, 0.61)], axis=1)
-                s = self.material.sample(wo, u, strict=False)
-                if np.any(s.flags & _LQ_SAMPLE_DELTA):
-                    return True
-            return False
 
         @staticmethod
         def _guard(what):
@@ -127,7 +131,8 @@ def _make_class():
             return value * self.tint.eval(si, active) if self.tint is not None else value
 
         def _smooth_on(self, ctx):
-            return ctx.is_enabled(self.smooth, 0)
+            return any(self.smooth & int(b) and ctx.is_enabled(b, 0)
+                       for b in (mi.BSDFFlags.DiffuseReflection, mi.BSDFFlags.GlossyReflection))
 
         def eval_pdf(self, ctx, si, wo, active=True):
             self._guard("eval/pdf")
@@ -152,7 +157,7 @@ def _make_class():
             s = self.material.sample(_to_np3(si.wi), u, strict=False)
             delta = (s.flags & _LQ_SAMPLE_DELTA) != 0
             ok = ((s.flags & _LQ_SAMPLE_FAILED) == 0) & (s.pdf > 0)
-            if not (self.has_delta and ctx.is_enabled(mi.BSDFFlags.DeltaReflection, 1)):
+            if not (self.has_delta and ctx.is_enabled(mi.BSDFFlags.DeltaReflection, self.delta_component)):
                 ok &= ~delta
             if not self._smooth_on(ctx):
                 ok &= delta
@@ -163,10 +168,10 @@ def _make_class():
             dflag, sflag = int(mi.BSDFFlags.DeltaReflection), int(self.smooth)
             if _is_jit():
                 bs.sampled_type = mi.UInt32(np.where(delta, dflag, sflag).astype(np.uint32))
-                bs.sampled_component = mi.UInt32(delta.astype(np.uint32))
+                bs.sampled_component = mi.UInt32(np.where(delta, self.delta_component, 0).astype(np.uint32))
             else:
                 bs.sampled_type = dflag if delta[0] else sflag
-                bs.sampled_component = 1 if delta[0] else 0
+                bs.sampled_component = self.delta_component if delta[0] else 0
             w = self._tinted(_spectrum(np.where(ok[:, None], s.weight, 0)), si, active)
             return bs, dr.select(active, w, 0.0)
 
