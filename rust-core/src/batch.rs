@@ -135,9 +135,16 @@ pub fn set_thread_count(n: usize) {
 #[must_use]
 pub fn thread_count() -> usize {
     match THREADS.load(Ordering::Relaxed) {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        0 => cores(),
         n => n,
     }
+}
+
+/// The cores this process may use, asked once: `available_parallelism` reads cgroup files
+/// on every call (a renderer's small batches made it a quarter of their time).
+fn cores() -> usize {
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 fn pool(threads: usize) -> Option<Arc<rayon::ThreadPool>> {
@@ -614,8 +621,11 @@ fn run<K>(n: usize, kernel: K) -> BatchReport
 where
     K: Fn(usize, usize) -> BatchReport + Sync,
 {
+    if n < PARALLEL_MIN {
+        return kernel(0, n);
+    }
     let threads = thread_count();
-    if threads <= 1 || n < PARALLEL_MIN {
+    if threads <= 1 {
         return kernel(0, n);
     }
     let Some(pool) = pool(threads) else {
