@@ -247,6 +247,26 @@ unsafe fn eval_pdf_impl<T: CoreBatch>(
             }
         });
     }
+    if T::HAS_SAMPLE_KERNEL && spatial.duv.is_some() {
+        // f32 with footprints: the core's surface-point batch calls (SIMD kernels with the
+        // flake lobes scaled per element); invalid elements are inactive (zero outputs).
+        let mut bad = Invalid::default();
+        let active: Vec<u8> =
+            (0..n).map(|i| u8::from(valid(i, vec3(&wi[i]), vec3(&wo[i]), &spatial, &mut bad))).collect();
+        let at: Vec<SurfacePoint> = (0..n).map(|i| spatial.point(i).unwrap_or(MEAN_LOBE)).collect();
+        let flat_f = f_rgb.map(|f| lacquer_core::batch::Dst3::interleaved(f.as_flattened_mut()));
+        let flat_p = pdf.map(|p| lacquer_core::batch::Dst1::new(p.as_flattened_mut()));
+        T::eval_pdf_at(
+            m,
+            &lacquer_core::batch::Src3::interleaved(wi.as_flattened()),
+            &lacquer_core::batch::Src3::interleaved(wo.as_flattened()),
+            &at,
+            &active,
+            flat_f.as_ref(),
+            flat_p.as_ref(),
+        );
+        return bad.finish(n);
+    }
     let mut bad = Invalid::default();
     let pairs = wi.iter().zip(wo).enumerate();
     match (f_rgb, pdf) {
@@ -295,7 +315,30 @@ trait CoreBatch: Real {
         u: &lacquer_core::batch::Src3<Self>,
         out: &mut lacquer_core::batch::SampleOut<Self>,
     ) -> lacquer_core::batch::BatchReport;
+    /// `batch::eval_pdf_at` (only called when `HAS_SAMPLE_KERNEL`).
+    #[allow(clippy::too_many_arguments)]
+    fn eval_pdf_at(
+        m: &Material,
+        wi: &lacquer_core::batch::Src3<Self>,
+        wo: &lacquer_core::batch::Src3<Self>,
+        at: &[SurfacePoint],
+        active: &[u8],
+        f: Option<&lacquer_core::batch::Dst3<Self>>,
+        pdf: Option<&lacquer_core::batch::Dst1<Self>>,
+    );
+    /// `batch::sample_at` (only called when `HAS_SAMPLE_KERNEL`).
+    fn sample_at(
+        m: &Material,
+        wo: &lacquer_core::batch::Src3<Self>,
+        u: &lacquer_core::batch::Src3<Self>,
+        at: &[SurfacePoint],
+        active: &[u8],
+        out: &mut lacquer_core::batch::SampleOut<Self>,
+    );
 }
+
+/// A surface point that means "no footprint": the mean lobe.
+const MEAN_LOBE: SurfacePoint = SurfacePoint { uv: [f64::NAN; 2], duv_dx: [0.0; 2], duv_dy: [0.0; 2] };
 
 impl CoreBatch for f32 {
     const HAS_SAMPLE_KERNEL: bool = true;
@@ -316,6 +359,29 @@ impl CoreBatch for f32 {
         out: &mut lacquer_core::batch::SampleOut<f32>,
     ) -> lacquer_core::batch::BatchReport {
         lacquer_core::batch::sample(m, wo, u, None, out).expect("views sized by the adapter")
+    }
+    fn eval_pdf_at(
+        m: &Material,
+        wi: &lacquer_core::batch::Src3<f32>,
+        wo: &lacquer_core::batch::Src3<f32>,
+        at: &[SurfacePoint],
+        active: &[u8],
+        f: Option<&lacquer_core::batch::Dst3<f32>>,
+        pdf: Option<&lacquer_core::batch::Dst1<f32>>,
+    ) {
+        // Elements with invalid inputs are inactive, so the report has nothing to add.
+        let _ =
+            lacquer_core::batch::eval_pdf_at(m, wi, wo, at, Some(active), f, pdf).expect("views sized by the adapter");
+    }
+    fn sample_at(
+        m: &Material,
+        wo: &lacquer_core::batch::Src3<f32>,
+        u: &lacquer_core::batch::Src3<f32>,
+        at: &[SurfacePoint],
+        active: &[u8],
+        out: &mut lacquer_core::batch::SampleOut<f32>,
+    ) {
+        let _ = lacquer_core::batch::sample_at(m, wo, u, at, Some(active), out).expect("views sized by the adapter");
     }
 }
 
@@ -338,6 +404,27 @@ impl CoreBatch for f64 {
         _out: &mut lacquer_core::batch::SampleOut<f64>,
     ) -> lacquer_core::batch::BatchReport {
         unreachable!("f64 sampling takes the element loop (HAS_SAMPLE_KERNEL is false)")
+    }
+    fn eval_pdf_at(
+        _m: &Material,
+        _wi: &lacquer_core::batch::Src3<f64>,
+        _wo: &lacquer_core::batch::Src3<f64>,
+        _at: &[SurfacePoint],
+        _active: &[u8],
+        _f: Option<&lacquer_core::batch::Dst3<f64>>,
+        _pdf: Option<&lacquer_core::batch::Dst1<f64>>,
+    ) {
+        unreachable!("f64 surface points take the element loop (HAS_SAMPLE_KERNEL is false)")
+    }
+    fn sample_at(
+        _m: &Material,
+        _wo: &lacquer_core::batch::Src3<f64>,
+        _u: &lacquer_core::batch::Src3<f64>,
+        _at: &[SurfacePoint],
+        _active: &[u8],
+        _out: &mut lacquer_core::batch::SampleOut<f64>,
+    ) {
+        unreachable!("f64 surface points take the element loop (HAS_SAMPLE_KERNEL is false)")
     }
 }
 
@@ -429,6 +516,54 @@ unsafe fn sample_impl<T: CoreBatch>(
             &mut out,
         );
         return report_failure_sample(n, report, |i| vec3(&wo[i]), |i| u[i]);
+    }
+    if T::HAS_SAMPLE_KERNEL && spatial.duv.is_some() {
+        // f32 with footprints: the core's surface-point sampler (see eval_pdf_impl).
+        let mut bad = Invalid::default();
+        let active: Vec<u8> = (0..n)
+            .map(|i| {
+                let o = vec3(&wo[i]);
+                let ok = if !usable(o) {
+                    bad.direction(i, "wo", o);
+                    false
+                } else if !u[i].iter().all(|&x| finite(x)) {
+                    bad.other(i, "u", &u[i]);
+                    false
+                } else {
+                    spatial.check(i, &mut bad)
+                };
+                u8::from(ok)
+            })
+            .collect();
+        let at: Vec<SurfacePoint> = (0..n).map(|i| spatial.point(i).unwrap_or(MEAN_LOBE)).collect();
+        let mut own_flags = Vec::new();
+        let flags: &mut [u32] = match flags {
+            Some(f) => f.as_flattened_mut(),
+            None => {
+                own_flags.resize(n, 0);
+                &mut own_flags
+            }
+        };
+        {
+            let mut out = lacquer_core::batch::SampleOut {
+                wi: lacquer_core::batch::Dst3::interleaved(wi.as_flattened_mut()),
+                weight: lacquer_core::batch::Dst3::interleaved(weight.as_flattened_mut()),
+                pdf: lacquer_core::batch::Dst1::new(pdf.as_flattened_mut()),
+                flags: Some(&mut *flags),
+            };
+            T::sample_at(
+                m,
+                &lacquer_core::batch::Src3::interleaved(wo.as_flattened()),
+                &lacquer_core::batch::Src3::interleaved(u.as_flattened()),
+                &at,
+                &active,
+                &mut out,
+            );
+        }
+        for (f, _) in flags.iter_mut().zip(&active).filter(|(_, &a)| a == 0) {
+            *f = LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT;
+        }
+        return bad.finish(n);
     }
     let zero = [T::zero(); 3];
     let mut bad = Invalid::default();

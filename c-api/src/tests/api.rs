@@ -202,9 +202,11 @@ fn every_model_matches_the_core_bit_for_bit() {
 
 #[test]
 fn spatial_inputs_reach_the_core_unchanged() {
-    // With uv and duv, the ABI must return exactly Material::eval_at / sample_at (sparkle);
-    // with uv alone, or for materials without spatial variation, exactly eval / sample; the pdf
-    // never depends on position.
+    // With uv and duv, the ABI must return exactly the core's surface-point batch calls
+    // (`batch::eval_pdf_at` / `sample_at`: the SIMD kernels with the flake lobes scaled per
+    // element, which rust-core/tests/batch.rs holds to Material::eval_at / sample_at within f32
+    // rounding); with uv alone, exactly Material::eval (the mean lobe); the pdf never depends
+    // on position.
     let n = 500;
     let (wi, wo, u) = inputs(n, 11);
     let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
@@ -246,23 +248,41 @@ fn spatial_inputs_reach_the_core_unchanged() {
             assert_eq!(s, LQ_OK);
             lq_material_free(m);
         }
+        let ats: Vec<lacquer_core::SurfacePoint> = (0..n).map(at).collect();
+        let e = {
+            use lacquer_core::batch::{self, Dst1, Dst3, SampleOut, Src3};
+            let (mut f, mut p) = (vec![0f32; 3 * n], vec![0f32; n]);
+            let (mut swi, mut sw, mut sp) = (vec![0f32; 3 * n], vec![0f32; 3 * n], vec![0f32; n]);
+            let (wiv, wov, uv3) = (Src3::interleaved(&wi), Src3::interleaved(&wo), Src3::interleaved(&u));
+            batch::eval_pdf_at(
+                &core,
+                &wiv,
+                &wov,
+                &ats,
+                None,
+                Some(&Dst3::interleaved(&mut f)),
+                Some(&Dst1::new(&mut p)),
+            )
+            .unwrap();
+            let mut out = SampleOut {
+                wi: Dst3::interleaved(&mut swi),
+                weight: Dst3::interleaved(&mut sw),
+                pdf: Dst1::new(&mut sp),
+                flags: None,
+            };
+            batch::sample_at(&core, &wov, &uv3, &ats, None, &mut out).unwrap();
+            [f, p, swi, sw, sp]
+        };
         for i in 0..n {
             let (a, o) = (v3(&wi, i), v3(&wo, i));
-            let expect = core.eval_at(a, o, &at(i)).to_array();
-            assert_eq!(bits(&f_s[3 * i..3 * i + 3]), bits(&expect), "{} element {i}", info.name);
+            assert_eq!(bits(&f_s[3 * i..3 * i + 3]), bits(&e[0][3 * i..3 * i + 3]), "{} element {i}", info.name);
             let mean = core.eval(a, o).to_array();
             assert_eq!(bits(&f_uv[3 * i..3 * i + 3]), bits(&mean), "{} element {i} (uv only)", info.name);
-            sparkle_seen |= expect != mean;
-            assert_eq!(p_s[i].to_bits(), core.pdf(a, o).to_bits());
-            let uu = [u[3 * i], u[3 * i + 1], u[3 * i + 2]];
-            match core.sample_at(o, uu, &at(i)) {
-                Some(smp) => {
-                    assert_eq!(bits(&out_s[0][3 * i..3 * i + 3]), bits(&[smp.wi.x, smp.wi.y, smp.wi.z]));
-                    assert_eq!(bits(&out_s[1][3 * i..3 * i + 3]), bits(&smp.weight.to_array()));
-                    assert_eq!(out_s[2][i].to_bits(), smp.pdf.to_bits());
-                }
-                None => assert_eq!(out_s[2][i], 0.0),
-            }
+            sparkle_seen |= core.eval_at(a, o, &at(i)).to_array() != mean;
+            assert_eq!(p_s[i].to_bits(), e[1][i].to_bits(), "{} pdf {i}", info.name);
+            assert_eq!(bits(&out_s[0][3 * i..3 * i + 3]), bits(&e[2][3 * i..3 * i + 3]), "{} sample wi {i}", info.name);
+            assert_eq!(bits(&out_s[1][3 * i..3 * i + 3]), bits(&e[3][3 * i..3 * i + 3]), "{} weight {i}", info.name);
+            assert_eq!(out_s[2][i].to_bits(), e[4][i].to_bits(), "{} sample pdf {i}", info.name);
         }
     }
     assert!(sparkle_seen, "the default coated paint sparkles through the ABI");
