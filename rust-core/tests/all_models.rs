@@ -181,7 +181,7 @@ fn random_parameters_mostly_build() {
     let mut rng = lacquer::rng::Pcg32::new(0xb011d, 1);
     let mut worst = (1.0f64, "");
     for &info in models::all() {
-        // 20 draws: 44 s of CPU for 100 (the seed models' and coated_paint's builds), 9 s for
+        // 20 draws: 44 s of CPU for 100 (the seed models' and coated_paint's builds), 7.3 s for
         // 20; a builder accepting half the sets passes with probability 2e-4 (≥ 18 of 20).
         let n = 20;
         let ok = (0..n)
