@@ -101,8 +101,9 @@ def find_or_build_library():
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR") or ROOT / "target")
     lib = target / "release" / "liblacquer.so"
     if not lib.is_file():
-        log(f"{lib} missing: cargo build --release -p lacquer-capi")
-        subprocess.run(["cargo", "build", "--release", "-p", "lacquer-capi"], cwd=ROOT, check=True,
+        # With the CLI, to share its build (same dependency features; docs/reliability.md).
+        log(f"{lib} missing: cargo build --release -p lacquer-capi -p lacquer-cli")
+        subprocess.run(["cargo", "build", "--release", "-p", "lacquer-capi", "-p", "lacquer-cli"], cwd=ROOT, check=True,
                        stdout=sys.stderr)
     return str(lib)
 

@@ -25,7 +25,8 @@ log() { printf '%s\n' "$*" >&2; }
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
 
 log "=== cargo build --release -p lacquer-capi"
-(cd "$root" && cargo build --release -q -p lacquer-capi) >&2
+# With the CLI, to share its build (same dependency features; docs/reliability.md).
+(cd "$root" && cargo build --release -q -p lacquer-capi -p lacquer-cli) >&2
 lib="$CARGO_TARGET_DIR/release/liblacquer.so"
 [ -f "$lib" ] || { log "build.sh: $lib not found"; exit 1; }
 

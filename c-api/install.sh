@@ -31,7 +31,8 @@ case "$prefix" in /*) ;; *) prefix="$(pwd)/$prefix" ;; esac
 
 target_dir="${CARGO_TARGET_DIR:-$root/target}"
 if [ "$build" = 1 ]; then
-    (cd "$root" && cargo build --release -p lacquer-capi)
+    # With the CLI, to share its build (same dependency features; docs/reliability.md).
+    (cd "$root" && cargo build --release -p lacquer-capi -p lacquer-cli)
 fi
 rel="$target_dir/release"
 for f in liblacquer.so liblacquer.a; do

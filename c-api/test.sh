@@ -59,7 +59,10 @@ if [ "$skip_rust" = 0 ]; then
 fi
 
 # --- 2. build and install ---------------------------------------------------------------------
-step "cargo build --release -p lacquer-capi" bash -c "cd '$root' && cargo build --release -p lacquer-capi --quiet"
+# With the CLI: Cargo then resolves the dependencies' features as for the CLI's own build and
+# reuses it (lacquer-capi alone resolves fewer features and rebuilt lacquer and ~20 crates: 67 s
+# in a fresh-clone CI run; docs/reliability.md).
+step "cargo build --release -p lacquer-capi -p lacquer-cli" bash -c "cd '$root' && cargo build --release -p lacquer-capi -p lacquer-cli --quiet"
 step "install into PREFIX" "$here/install.sh" --no-build --prefix "$prefix"
 export PKG_CONFIG_PATH="$prefix/lib/pkgconfig"
 

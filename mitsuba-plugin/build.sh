@@ -51,7 +51,8 @@ fi
 site="$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
 
 step "liblacquer.a"
-(cd "$repo" && cargo build --release -q -p lacquer-capi)
+# With the CLI, to share its build (same dependency features; docs/reliability.md).
+(cd "$repo" && cargo build --release -q -p lacquer-capi -p lacquer-cli)
 lib="$target/release/liblacquer.a"
 [ -f "$lib" ] || { echo "build.sh: $lib not found (CARGO_TARGET_DIR?)" >&2; exit 1; }
 

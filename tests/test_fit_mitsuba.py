@@ -8,7 +8,9 @@ the values are written as a MERL `.binary` file. Then:
 - `lacquer check --material '{"model": "measured", "file": ...}'` loads it (the real loader) and
   the measured model passes its claims on it;
 - `lacquer fit` fits the matching Lacquer model (`rough_plastic`, `rough_conductor`, written to
-  Mitsuba's formulas) to high SNR when that model is registered, and always fits `ward`.
+  Mitsuba's formulas) and recovers Mitsuba's parameters (η, k, α, reflectances) to the
+  tolerances stated at the tests, and always fits `ward`; a NaN, Inf or negative value from
+  Mitsuba at a valid node fails the test.
 
 Environment: `pip install -r tests/requirements.txt` (mitsuba==3.9.1, numpy, pytest). The
 Lacquer binary is `$LACQUER_BIN`, else `$CARGO_TARGET_DIR/release/lacquer` or
@@ -74,7 +76,9 @@ def merl_node_directions():
 
 
 def sample_mitsuba(bsdf_dict):
-    """RGB BRDF (1/sr, no cosine) of a Mitsuba BSDF at every MERL node; −1 where invalid."""
+    """RGB BRDF (1/sr, no cosine) of a Mitsuba BSDF at every MERL node; −1 where the node has
+    no valid direction pair. A NaN, infinite or negative value from Mitsuba at a valid node is
+    an error (it used to be written as 0, a fake measurement the fit then tried to follow)."""
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
@@ -91,9 +95,17 @@ def sample_mitsuba(bsdf_dict):
         si.wi = mi.Vector3f(o[0], o[1], o[2])
         v = bsdf.eval(ctx, si, mi.Vector3f(i[0], i[1], i[2]))
         out[a, b, c] = np.array([v[0], v[1], v[2]]) / i[2]
-    bad = (~np.isfinite(out) | (out < 0)).any(axis=-1)
-    out[bad & valid] = 0.0
+    reject_invalid(out, valid)
     return out
+
+
+def reject_invalid(out, valid):
+    """Raises ValueError when a valid node holds a NaN, infinite or negative value."""
+    bad = (~np.isfinite(out) | (out < 0)).any(axis=-1) & valid
+    if bad.any():
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(f"Mitsuba returned {int(bad.sum())} invalid (NaN, Inf or negative) values at valid "
+                         f"MERL nodes, first at (θh, θd, φd) index {first}: {out[first]}")
 
 
 def write_merl(path, rgb):
@@ -157,6 +169,15 @@ def test_node_directions_follow_the_format():
     assert 0.7 < valid.mean() < 0.8
 
 
+def test_invalid_mitsuba_values_fail():
+    valid = np.array([[True, True, False]])
+    reject_invalid(np.array([[[0.1, 0.2, 0.3], [0.0, 0.0, 0.0], [-1.0, -1.0, -1.0]]]), valid)
+    for bad in (np.nan, np.inf, -1e-9):
+        out = np.array([[[0.1, 0.2, 0.3], [0.0, bad, 0.0], [-1.0, -1.0, -1.0]]])
+        with pytest.raises(ValueError, match="invalid"):
+            reject_invalid(out, valid)
+
+
 def test_loader_reads_mitsuba_tables_and_the_measured_model_passes(tables):
     for path in tables.values():
         material = json.dumps({"model": "measured", "file": str(path)})
@@ -181,25 +202,41 @@ def test_ward_fits_mitsuba_tables_better_than_lambert(tables):
         assert math.isfinite(ward["metrics"]["snr_db_mean"]) and ward["metrics"]["ngan"] < lam["metrics"]["ngan"]
 
 
+# Measured on this machine (release build, 2026-12-01; `python tests/test_fit_mitsuba.py T.binary
+# roughplastic` then `lacquer fit --table T.binary --spec ...`): both fits recover Mitsuba's
+# parameters to 1e-5 or better, at SNR 100–126 dB. The tolerances below sit 10–50x above those
+# figures (the optimiser's stopping point moves with the SIMD level and the thread split), far
+# below the old ones (SNR > 30 dB, α ± 0.01, η and k never checked).
+
+
 def test_rough_plastic_fits_mitsuba_roughplastic(tables):
-    if "rough_plastic" not in registered_models():
-        pytest.skip("rough_plastic is not registered on this build")
+    assert "rough_plastic" in registered_models()
     [f] = fit(tables["roughplastic"], "--spec", json.dumps(PLASTIC_FIT), "--points", "6000", "--budget", "120")
     m = f["metrics"]
-    assert m["snr_weighted_db"] > 30.0 and m["snr_db_mean"] > 25.0, f
+    # measured: weighted SNR 99.7 dB, mean 110.9 dB
+    assert m["snr_weighted_db"] > 90.0 and m["snr_db_mean"] > 100.0, f
     params = dict(f["parameters"])
-    assert abs(params["alpha"] - 0.12) < 0.01, params
-    assert abs(params["diffuse_reflectance[0]"] - 0.6) < 0.05, params
+    # measured errors: α 2.4e-7, int_ior 3.0e-6, diffuse ≤ 1.7e-5, specular ≤ 6.1e-6
+    assert abs(params["alpha"] - PLASTIC["alpha"]) < 1e-5, params
+    assert abs(params["int_ior"] - PLASTIC["int_ior"]) < 1e-4, params
+    for c, want in enumerate(PLASTIC["diffuse_reflectance"]["value"]):
+        assert abs(params[f"diffuse_reflectance[{c}]"] - want) < 2e-4, params
+        assert abs(params[f"specular_reflectance[{c}]"] - 1.0) < 1e-4, params
 
 
 def test_rough_conductor_fits_mitsuba_roughconductor(tables):
-    if "rough_conductor" not in registered_models():
-        pytest.skip("rough_conductor is not registered on this build")
+    assert "rough_conductor" in registered_models()
     [f] = fit(tables["roughconductor"], "--spec", json.dumps(CONDUCTOR_FIT), "--points", "6000", "--budget", "120")
     m = f["metrics"]
-    assert m["snr_weighted_db"] > 30.0 and m["snr_db_mean"] > 25.0, f
+    # measured: weighted SNR 126.0 dB, mean 119.7 dB
+    assert m["snr_weighted_db"] > 110.0 and m["snr_db_mean"] > 105.0, f
     params = dict(f["parameters"])
-    assert abs(params["alpha_u"] - 0.15) < 0.01 and abs(params["alpha_v"] - 0.15) < 0.01, params
+    # measured errors: α 6e-9, η ≤ 6.4e-7, k ≤ 2.3e-6, specular ≤ 1.6e-7
+    assert abs(params["alpha_u"] - 0.15) < 1e-5 and abs(params["alpha_v"] - 0.15) < 1e-5, params
+    for c in range(3):
+        assert abs(params[f"eta[{c}]"] - CONDUCTOR_ETA[c]) < 1e-4, params
+        assert abs(params[f"k[{c}]"] - CONDUCTOR_K[c]) < 1e-4, params
+        assert abs(params[f"specular_reflectance[{c}]"] - 1.0) < 1e-4, params
 
 
 if __name__ == "__main__":

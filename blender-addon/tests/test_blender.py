@@ -37,7 +37,16 @@ SPP = int(os.environ.get("LACQUER_BLENDER_SPP", "32"))
 #: lobes reflecting a small light make Cycles' region means heavy-tailed at test sample counts
 #: (a region's ratio moves by ±20 % between 32, 64 and 256 spp), so it is checked on the whole
 #: sphere's mean (which moves by 3 %). Measured figures: blender-addon/README.md.
-REGION_TOL = (0.12, 0.30)
+#: The renders are seeded, so the figures repeat: 15 runs kept in /tmp (2026-12-01, several
+#: revisions of the extension) gave per region 9.54–9.56 % / 19.92–20.16 % (bpy 4.5.15 / 5.0.1:
+#: Cycles' own sampling differs between the versions, a stand-in for a seed change) and on the
+#: sphere with per-cell flakes 7.84 % / 16.6 % (4.5.15) and 3.94 % / 6.34 % (5.0.1). REGION_TOL
+#: was 12 % / 30 %: now the measured worst plus 1 point in luminance and 2 points in a channel
+#: (ten times the spread between the bpy versions). SPHERE_TOL stays: the sparkle variant's
+#: sphere mean moves by 3 points between 32, 64 and 256 spp (above), and 7.84 + 3 ≈ 11 < 12 %;
+#: its blue channel differs by 10 points between the versions (16.6 vs 6.3 %), more than the
+#: 8-point margin of 25 % over 16.6 %, so that margin is not tightened.
+REGION_TOL = (0.105, 0.22)
 SPHERE_TOL = (0.12, 0.25)
 #: Light and world conversions with an exact material on both sides (Diffuse BSDF = Lambert).
 LIGHTS_TOL = 0.01

@@ -191,13 +191,15 @@ def test_footprint_reaches_sparkle(scalar_rgb):
         si.duv_dy = mi.Vector2f(0, 1e-3)
         values.append(np.array(bsdf.eval(ctx, si, wo)))
     values = np.array(values)
-    if np.allclose(values, mean_lobe, rtol=1e-6):
-        pytest.xfail("the C ABI's lq_*_spatial functions do not pass uv/footprint to the core's "
-                     "eval_at yet (c-api/src/batch.rs); the plugin already sends them")
+    # The C ABI's lq_*_spatial functions pass uv/footprint to the core's eval_at: the values
+    # must vary from place to place (this used to be an xfail, which would now hide a regression).
+    assert not np.allclose(values, mean_lobe, rtol=1e-6), "uv/footprint did not reach the core's eval_at"
     assert np.isfinite(values).all() and (values >= 0).all()
     assert values.std(axis=0).max() > 0
-    # a loose check (sparkle is spiky): the spatial mean is the mean lobe within 50 %
-    assert np.allclose(values.mean(axis=0), mean_lobe, rtol=0.5)
+    # The spatial mean is the mean lobe. Measured (issue 16; this seed 7 and seeds 8-11):
+    # relative deviation -0.71 % here (at most 0.72 %), relative standard error of the mean of
+    # 1000 places 0.26-0.46 %; rtol 2 % is about 4 standard errors above that (was 50 %).
+    assert np.allclose(values.mean(axis=0), mean_lobe, rtol=0.02)
 
 
 def test_scalar_spectral_grey_is_exact_and_colours_are_close(scalar_spectral):

@@ -179,9 +179,9 @@ def test_sparkle_with_lacquer_path(request, tmp_path, variant):
     b = render_with(mitsuba_scene({**lacquer_dict("gold_flake_8"), "footprint": False}, black), "lacquer_path",
                     tmp_path / "mean.exr", wavefront=wave)
     A, B = read_exr(a), read_exr(b)
-    if np.array_equal(A, B):
-        pytest.xfail("no sparkle in the image: the C ABI's lq_*_spatial functions do not pass "
-                     "uv/footprint to the core's eval_at yet; the plugin and integrator send them")
+    # The footprint reaches the core's eval_at (this used to be an xfail for when it did not,
+    # which would now hide a regression): the sparkle image differs from the mean-lobe one.
+    assert not np.array_equal(A, B), "no sparkle in the image: uv/footprint did not reach the core's eval_at"
     stats = compare(A, B)
     print(variant, stats)
     assert abs(stats["z_mean"]) < 5, stats

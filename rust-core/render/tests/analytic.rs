@@ -73,8 +73,15 @@ fn white_furnace_lambert() {
 /// no flakes) with a mirror-smooth clearcoat. Its albedo is 1 up to the model's table error
 /// (`lacquer check` measures 0.998–0.999), so the sphere renders to ≈ 1; mixing the delta coat
 /// reflection with the MIS'd diffuse lobes must neither double-count nor drop light. The
-/// rough-coat version exercises MIS with a glossy lobe. Tolerance on the mean: 1.5 %
-/// (0.2 % model error + noise).
+/// rough-coat version exercises MIS with a glossy lobe.
+///
+/// Measured (issue 16; 8 seeds each, this test's scene and settings): the sphere's mean is
+/// 0.9964 for both coats (the sphere averages grazing views too, where the model's albedo is
+/// lower than the 0.998–0.999 `lacquer check` reports) and one render's mean scatters by
+/// σ = 0.0010 (0.00099 smooth, 0.00091 rough; seed 0, used here: 0.99443 / 0.99442). The mean
+/// must lie in [1 − 0.009, 1 + 0.005]: the measured model deficit 0.0036 plus 5σ below, 5σ of
+/// noise above 1 (an energy gain is a bug); it was ±1.5 %. Worst pixel: 0.17–0.24 over the 16
+/// renders (heavy-tailed at 64 spp), bound 0.35.
 #[test]
 fn white_furnace_lossless_coat() {
     for rough in [0.0, 0.1] {
@@ -84,7 +91,7 @@ fn white_furnace_lossless_coat() {
         let fb = render_quiet(&scene, &settings(64, 64));
         let (mean, worst, _) = sphere_stats(&fb, 1.0);
         eprintln!("furnace lossless coat (roughness {rough}): mean {mean:.5}, worst pixel deviation {worst:.4}");
-        assert!((mean - 1.0).abs() < 0.015, "coat roughness {rough}: mean {mean}");
+        assert!(mean > 1.0 - 0.009 && mean < 1.0 + 0.005, "coat roughness {rough}: mean {mean}");
         assert!(worst < 0.35, "coat roughness {rough}: worst pixel deviates by {worst}");
         assert_eq!(fb.stats.invalid, 0);
     }

@@ -215,23 +215,19 @@ impl NumericsRow {
 /// their half vector `(wi + wo)/|wi + wo|` is ill-conditioned, since the rounding of the unit
 /// inputs (1e-16) becomes a relative error of 1e-16/|wi + wo| in it, and `wi·h`, `wo·h` — equal
 /// in exact arithmetic — differ by as much. Models built on the half vector then disagree with
-/// themselves under the swap beyond 1e-6 (measured up to 0.996 for coated_paint at
-/// |wi + wo| ≈ 5e-9). Their reciprocity error is reported apart (`worst_reciprocity_opposite`),
+/// themselves under the swap beyond 1e-6 (measured 0.85–0.95 for cook_torrance,
+/// cook_torrance_1981 and torrance_sparrow; coated_paint's 0.996 came from its coat of index 1,
+/// fixed in issue 16: 5.8e-8 since). Their reciprocity error is reported apart (`worst_reciprocity_opposite`),
 /// not counted as a violation; NaN, Inf and negative values are counted on them as everywhere.
 pub const OPPOSITE_GAP: f64 = 1e-4;
 
 /// Known exceptions: `(model, largest cos θ, what is known)`. A row's reciprocity violations
 /// are covered (reported, not failed) when its model is listed and every violation has both
 /// directions at `cos θ ≤` the bound: a characterisation that the smoke test keeps true, not
-/// an excuse for violations elsewhere.
-pub const EXPLAINED: &[(&str, f64, &str)] = &[(
-    "coated_paint",
-    1e-3,
-    "open finding: reciprocity violations at grazing, nearly mirror-symmetric pairs (both \
-     cos θ ≤ 1e-3, azimuths ≈ π apart, |ŵi + ŵo| ≥ 1e-4): 18 of 1.46e6 pairs, relative errors up \
-     to 0.69 where f is 1e-16 to 1e-9 /sr (f cos θ < 1e-12). The cause is not isolated; the \
-     half-vector conditioning explains the pairs below 1e-4 only",
-)];
+/// an excuse for violations elsewhere. Empty since issue 16 found the cause of the last entry
+/// (coated_paint at grazing, nearly mirror-symmetric pairs: the Fresnel residue of a coat of
+/// index 1, fixed in `paint::coat`; docs/numerics.md).
+pub const EXPLAINED: &[(&str, f64, &str)] = &[];
 
 /// Kinds of adversarial pairs ([`adversarial_pair`]).
 const KINDS: u64 = 11;

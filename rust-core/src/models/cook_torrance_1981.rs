@@ -140,16 +140,7 @@ impl Bxdf for CookTorrance1981 {
         diffuse + f * (T::of(self.ks) * d * g / (wi.z * wo.z))
     }
 
-    #[inline]
-    fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        self.beckmann::<T>().mixed_with_cosine_pdf(self.specular_probability(wo), wi, wo)
-    }
-
-    #[inline]
-    fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.beckmann::<T>().sample_mixed_with_cosine(self.specular_probability(wo), wo, u)?;
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
-    }
+    beckmann_mixture_sampling!();
 }
 
 #[cfg(test)]

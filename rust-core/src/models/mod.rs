@@ -45,6 +45,26 @@ macro_rules! cosine_sampling {
     };
 }
 
+/// The `pdf` and `sample` of a [`Bxdf`] that mixes a Beckmann visible-normal lobe with a
+/// cosine lobe (the Cook-Torrance 1981 and Torrance-Sparrow models): the type provides
+/// `beckmann::<T>()` (its [`crate::microfacet::Microfacet`]) and `specular_probability(wo)`;
+/// the mixture is [`crate::microfacet::Microfacet::mixed_with_cosine_pdf`], the sample's
+/// value the model's own `eval`.
+macro_rules! beckmann_mixture_sampling {
+    () => {
+        #[inline]
+        fn pdf<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+            self.beckmann::<T>().mixed_with_cosine_pdf(self.specular_probability(wo), wi, wo)
+        }
+
+        #[inline]
+        fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
+            let wi = self.beckmann::<T>().sample_mixed_with_cosine(self.specular_probability(wo), wo, u)?;
+            BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        }
+    };
+}
+
 macro_rules! models {
     ($($variant:ident($module:ident :: $ty:ident)),* $(,)?) => {
         $(pub mod $module;)*

@@ -38,7 +38,7 @@ impl Coat {
     #[must_use]
     pub fn new(ior: f64, roughness: f64, thickness_um: f64, absorption_per_mm: [f64; 3]) -> Self {
         let mut coat = Self { ior, roughness, absorption_per_mm, thickness_mm: thickness_um * 1e-3, albedo: None };
-        if !coat.is_smooth() {
+        if !coat.is_smooth() && coat.has_interface() {
             coat.albedo = Some(coat.tabulate_albedo());
         }
         coat
@@ -49,6 +49,16 @@ impl Coat {
     #[must_use]
     pub fn is_smooth(&self) -> bool {
         self.roughness == 0.0
+    }
+
+    /// False for `ior = 1`: no index step, so no top reflection. The Fresnel formula gives 0
+    /// there only up to rounding (its `1 − sin²θt` cancels at grazing angles, leaving residues of
+    /// 1e-16 relative that the rough lobe's `D G / (4 cos θi cos θo)` amplified to non-reciprocal
+    /// values up to 1e-9 /sr; docs/numerics.md), so the coat answers exactly 0 instead.
+    #[inline]
+    #[must_use]
+    pub fn has_interface(&self) -> bool {
+        self.ior != 1.0
     }
 
     /// True when the coat absorbs.
@@ -69,6 +79,7 @@ impl Coat {
     #[must_use]
     pub fn reflectance<T: Lanes>(&self, mu: T) -> T {
         match &self.albedo {
+            _ if !self.has_interface() => T::c(0.0),
             None => fresnel::dielectric(mu, T::c(self.ior)),
             Some(t) => t.eval_lanes(mu)[0],
         }
@@ -85,7 +96,7 @@ impl Coat {
     #[inline(always)]
     #[must_use]
     pub fn reflection_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        if self.is_smooth() {
+        if self.is_smooth() || !self.has_interface() {
             return T::c(0.0);
         }
         let (h, defined) = half_vector_masked(wi, wo);

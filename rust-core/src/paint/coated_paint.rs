@@ -695,6 +695,50 @@ mod tests {
         }
     }
 
+    /// Issue 16 (`lacquer numerics`): a rough coat of index 1 reflected the rounding residue of
+    /// the Fresnel formula (0 in exact arithmetic) through `D G / (4 cos θi cos θo)`, which at
+    /// grazing, nearly mirror-symmetric pairs gave up to 8e-10 /sr one way and 2e-10 /sr the
+    /// other (relative reciprocity errors up to 0.69). The pairs are the report's examples; with
+    /// no pigment and no flakes there is nothing but that residue, so f must be exactly 0, and
+    /// with a pigment it must be reciprocal to 1e-12.
+    #[test]
+    fn a_coat_of_index_one_reflects_nothing_and_stays_reciprocal_at_grazing() {
+        let pairs = [
+            (
+                [-0.7499908038050798, 0.6614482551249252, 4.449774533588684e-8],
+                [0.7497630273467385, -0.6617064325090485, 4.4482430345980863e-8],
+            ),
+            (
+                [0.24338282356037405, -0.969930200856681, 0.0004546008118651432],
+                [-0.24338246343996048, 0.9699302912210503, 0.00045460064307879913],
+            ),
+            (
+                [0.38144815582552904, -0.9243901405794519, 0.00041523102507719754],
+                [-0.3814481488577413, 0.9243901434546999, 0.00041523102194730515],
+            ),
+            (
+                [-0.5153391871154128, 0.856986302237781, 2.0046486483928204e-7],
+                [0.5151324293546051, -0.8571105997636377, 2.0041651556598514e-7],
+            ),
+        ];
+        let v = |a: [f64; 3]| Vec3::new(a[0], a[1], a[2]);
+        for rough in [0.0, 0.001, 0.02, 0.5] {
+            let bare = paint(&format!(
+                r#"{{"model": "coated_paint", "coat_ior": 1.0, "coat_roughness": {rough}, "flake_density": 0, "base_color": 0}}"#
+            ));
+            let pigment = paint(&format!(r#"{{"model": "coated_paint", "coat_ior": 1.0, "coat_roughness": {rough}}}"#));
+            assert_eq!(bare.coat().reflectance(0.3f64), 0.0);
+            for (wi, wo) in pairs.map(|(a, b)| (v(a), v(b))) {
+                assert_eq!(bare.coat().reflection_eval(wi, wo), 0.0);
+                assert_eq!((bare.eval(wi, wo), bare.eval(wo, wi)), (Rgb::zero(), Rgb::zero()), "α {rough}");
+                let (a, b) = (pigment.eval(wi, wo), pigment.eval(wo, wi));
+                for c in 0..3 {
+                    assert!((a[c] - b[c]).abs() <= 1e-12 * a[c].abs().max(1e-10), "α {rough}: {a:?} vs {b:?}");
+                }
+            }
+        }
+    }
+
     /// A smooth coat over a white Lambert base at normal incidence: the single-scatter term is
     /// `(1 − F0)² / η² · 1/π` (hand-derived from the radiance η² law).
     #[test]
