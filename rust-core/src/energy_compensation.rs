@@ -101,6 +101,11 @@ pub struct AlbedoTable {
     loss: Vec<f64>,
     /// Monotone-cubic (Fritsch-Carlson) slopes `d(1 − E)/ds` at the nodes, same layout.
     slope: Vec<f64>,
+    /// Row 0 of `loss` and `slope` rounded to f32 and padded for [`Lanes::lookup_f32_`] (the
+    /// isotropic lane lookups of [`AlbedoTable::loss_at_lanes`]).
+    lane_loss: Vec<f32>,
+    /// See `lane_loss`.
+    lane_slope: Vec<f32>,
     /// `1 − E_avg`, the integral of the interpolated table.
     loss_avg: f64,
     /// The Fresnel-like weight of a shared weighted table ([`AlbedoTable::cached_weighted`]);
@@ -744,6 +749,8 @@ impl AlbedoTable {
                     eps: eps.clone(),
                     inv_log_span: inv_log_span.clone(),
                     n_phi,
+                    lane_loss: padded_f32(&loss[..N_MU]),
+                    lane_slope: padded_f32(&slope[..N_MU]),
                     loss,
                     slope,
                     loss_avg: 0.0,
@@ -922,17 +929,23 @@ impl AlbedoTable {
     #[inline(always)]
     #[must_use]
     pub fn loss_at_lanes<L: Lanes>(&self, (j, f): (L, L)) -> L {
-        const MAX_WIDTH: usize = 16;
-        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
-        let mut idx = [0usize; MAX_WIDTH];
-        for (k, i) in idx.iter_mut().enumerate().take(L::WIDTH) {
-            *i = (j.lane(k).f64() as usize).min(N_MU - 2);
-        }
         let h = L::c(1.0 / (N_MU - 1) as f64);
-        let y0 = L::from_fn(|k| L::Elem::of(self.loss[idx[k]]));
-        let y1 = L::from_fn(|k| L::Elem::of(self.loss[idx[k] + 1]));
-        let d0 = L::from_fn(|k| L::Elem::of(self.slope[idx[k]])) * h;
-        let d1 = L::from_fn(|k| L::Elem::of(self.slope[idx[k] + 1])) * h;
+        let (y0, y1, d0, d1) = if L::WIDTH == 1 {
+            // One lane (the scalar paths, f64 among them): the nodes at full precision.
+            let i = (j.lane(0).f64() as usize).min(N_MU - 2);
+            let at = |v: &[f64], i: usize| L::splat(L::Elem::of(v[i]));
+            (at(&self.loss, i), at(&self.loss, i + 1), at(&self.slope, i) * h, at(&self.slope, i + 1) * h)
+        } else {
+            // `cell_lanes` keeps `j` in [0, N_MU − 2]; the lookups clamp (NaN reads node 0),
+            // and their f32 nodes are the values the lanes held before (f64 rounded to f32).
+            let next = j + L::c(1.0);
+            (
+                L::lookup_f32_(&self.lane_loss, j),
+                L::lookup_f32_(&self.lane_loss, next),
+                L::lookup_f32_(&self.lane_slope, j) * h,
+                L::lookup_f32_(&self.lane_slope, next) * h,
+            )
+        };
         // Cubic Hermite basis.
         let f2 = f * f;
         let f3 = f2 * f;
@@ -1004,6 +1017,15 @@ impl AlbedoTable {
         // Four quadrants, divided by π.
         4.0 * sum / std::f64::consts::PI
     }
+}
+
+/// `values` rounded to f32, padded with the last value to a multiple of 16 (at least 32)
+/// entries, as [`Lanes::lookup_f32_`] needs.
+fn padded_f32(values: &[f64]) -> Vec<f32> {
+    let mut v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+    let last = *v.last().expect("a table row has nodes");
+    v.resize(values.len().next_multiple_of(16).max(32), last);
+    v
 }
 
 /// `μ` at the table coordinate `s ∈ [0, 1]` of a row with spacing scale `ε`.
@@ -1133,6 +1155,40 @@ impl Compensation {
     #[must_use]
     pub fn albedo<T: Real>(&self, wo: Vec3<T>) -> T {
         crate::math::Rgb::<T>::from_array(self.f_ms).average() * self.table.loss(wo)
+    }
+
+    /// `1 − E(w)` per lane: isotropic tables interpolated in lanes
+    /// ([`AlbedoTable::cell_lanes`], [`AlbedoTable::loss_at_lanes`]), anisotropic ones (and
+    /// the one-lane paths) through [`AlbedoTable::loss`] one lane at a time.
+    #[inline(always)]
+    #[must_use]
+    pub fn loss_lanes<L: Lanes>(&self, w: Vec3<L>) -> L {
+        let t = &self.table;
+        if L::WIDTH == 1 || t.n_phi != 1 {
+            return L::from_fn(|i| t.loss(crate::bxdf::lane_of(w, i)));
+        }
+        t.loss_at_lanes(t.cell_lanes(w.z))
+    }
+
+    /// [`Compensation::eval`] per lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> crate::math::Rgb<L> {
+        let loss_avg = self.table.loss_avg;
+        if !(loss_avg > 1e-9) {
+            return crate::math::Rgb::splat(L::c(0.0));
+        }
+        let f = self.loss_lanes(wi) * self.loss_lanes(wo) * L::c(std::f64::consts::FRAC_1_PI) / L::c(loss_avg);
+        crate::math::Rgb::from_array(self.f_ms) * f
+    }
+
+    /// [`Compensation::albedo`] per lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn albedo_lanes<L: Lanes>(&self, wo: Vec3<L>) -> L {
+        let [r, g, b] = self.f_ms.map(L::c);
+        // Rgb::average, as `albedo` computes it.
+        (r + g + b) / L::c(3.0) * self.loss_lanes(wo)
     }
 }
 

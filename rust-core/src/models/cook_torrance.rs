@@ -41,7 +41,7 @@
 //! E. Heitz, "Understanding the Masking-Shadowing Function", JCGT 2014; C. Kulla, A. Conty,
 //! SIGGRAPH 2017 course.
 
-use crate::bxdf::{lane_of, per_lane_rgb, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
@@ -181,8 +181,7 @@ impl CookTorrance {
         let albedo = Rgb::<L>::from_array(self.albedo);
         let mut wc = L::c(self.kd) * ((albedo.r + albedo.g + albedo.b) / L::c(3.0));
         if let Some(ms) = &self.ms {
-            // The compensation albedo is tabulated in scalar form: one lane at a time.
-            wc += L::c(self.ks) * L::from_fn(|i| ms.albedo(lane_of(wo, i)));
+            wc += L::c(self.ks) * ms.albedo_lanes(wo);
         }
         let sum = ws + wc;
         lanes::select(lanes::gt(sum, L::c(0.0)), ws / sum, L::c(0.0))
@@ -201,8 +200,7 @@ impl LaneBxdf for CookTorrance {
         let mut f = Rgb::from_array(self.albedo) * (L::c(self.kd) * L::c(std::f64::consts::FRAC_1_PI));
         let ks = L::c(self.ks);
         if let Some(ms) = &self.ms {
-            // The compensation lobe is tabulated in scalar form: one lane at a time.
-            f += per_lane_rgb(wi, wo, |a, b| ms.eval(a, b)) * ks;
+            f += ms.eval_lanes(wi, wo) * ks;
         }
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<L>();

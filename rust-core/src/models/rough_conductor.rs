@@ -60,7 +60,7 @@
 //! Distribution of Visible Normals", EGSR 2014; Mitsuba 3 `src/bsdfs/roughconductor.cpp` and
 //! `include/mitsuba/render/microfacet.h`; C. Kulla, A. Conty, SIGGRAPH 2017 course.
 
-use crate::bxdf::{lane_of, per_lane_rgb, Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
@@ -70,7 +70,6 @@ use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
-use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
 const PARAMS: &[ParamSpec] = &[
@@ -209,19 +208,19 @@ impl RoughConductor {
     }
 
     /// Selection probability of the specular lobe for this `wo` (1 without compensation).
-    fn specular_probability<T: Real>(&self, wo: Vec3<T>) -> T {
+    #[inline(always)]
+    fn specular_probability<L: Lanes>(&self, wo: Vec3<L>) -> L {
         let Some(ms) = &self.ms else {
-            return T::one();
+            return L::c(1.0);
         };
         let f = conductor_rgb(wo.z, Rgb::from_array(self.eta), Rgb::from_array(self.k));
         let scale = Rgb::from_array(self.specular_reflectance);
-        let ws = (scale * f).average();
-        let wc = (scale * Rgb::from_array(ms.f_ms)).average() * ms.table.loss(wo);
-        if ws + wc > T::zero() {
-            ws / (ws + wc)
-        } else {
-            T::one()
-        }
+        // Rgb::average, written out for lanes.
+        let average = |c: Rgb<L>| (c.r + c.g + c.b) / L::c(3.0);
+        let ws = average(scale * f);
+        let wc = average(scale * Rgb::from_array(ms.f_ms)) * ms.loss_lanes(wo);
+        let sum = ws + wc;
+        lanes::select(lanes::gt(sum, L::c(0.0)), ws / sum, L::c(1.0))
     }
 
     /// The single-scattering microfacet lobe, without `specular_reflectance`.
@@ -240,8 +239,7 @@ impl LaneBxdf for RoughConductor {
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let mut f = self.single_scattering(wi, wo);
         if let Some(ms) = &self.ms {
-            // The compensation lobe is tabulated in scalar form: one lane at a time.
-            f += per_lane_rgb(wi, wo, |a, b| ms.eval(a, b));
+            f += ms.eval_lanes(wi, wo);
         }
         f * Rgb::from_array(self.specular_reflectance)
     }
@@ -252,7 +250,7 @@ impl LaneBxdf for RoughConductor {
         if self.ms.is_none() {
             return spec;
         }
-        let ps = L::from_fn(|i| self.specular_probability(lane_of(wo, i)));
+        let ps = self.specular_probability(wo);
         ps * spec + (L::c(1.0) - ps) * cosine_hemisphere_pdf(wi.z)
     }
 
@@ -283,7 +281,7 @@ impl LaneBxdf for RoughConductor {
         let (wi, valid) = if self.ms.is_none() {
             (spec_wi, spec_ok)
         } else {
-            let ps = L::from_fn(|i| self.specular_probability(lane_of(wo, i)));
+            let ps = self.specular_probability(wo);
             let specular = lanes::lt(u[0], ps);
             let diffuse_wi = cosine_hemisphere(u[1], u[2]);
             (Vec3::select(specular, spec_wi, diffuse_wi), spec_ok | !specular)

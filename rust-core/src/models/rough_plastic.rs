@@ -183,6 +183,9 @@ pub struct PlasticTables {
     eta: f64,
     /// `T(μ_j)`, `μ_j = max(1e-6, j/63)`.
     pub transmittance: [f64; RES],
+    /// `transmittance` rounded to f32, for the SIMD lookups ([`Lanes::lookup_f32_`]: register
+    /// permutes with AVX-512, as `RES` = 64 nodes fit two registers).
+    lane_transmittance: [f32; RES],
     /// `F_dr = 2 mean_j R(μ_j) μ_j`.
     pub internal_reflectance: f64,
 }
@@ -270,6 +273,7 @@ impl PlasticTables {
             distribution,
             alpha,
             eta,
+            lane_transmittance: transmittance.map(|t| t as f32),
             transmittance,
             internal_reflectance: 2.0 * sum / RES as f64,
         }
@@ -309,24 +313,27 @@ impl PlasticTables {
         self.lookup_lanes(mu)
     }
 
-    /// [`PlasticTables::lookup`] per lane: the index and weight in lanes, the two node values
-    /// gathered one lane at a time (a table lookup; `Lanes` has no gather).
+    /// [`PlasticTables::lookup`] per lane: the index and weight in lanes; the two node values
+    /// read from the f64 nodes on the one-lane paths and from their f32 copies (the values the
+    /// lanes hold) with [`Lanes::lookup_f32_`] on SIMD lanes.
     #[inline(always)]
     #[must_use]
     pub fn lookup_lanes<L: Lanes>(&self, mu: L) -> L {
-        const MAX_WIDTH: usize = 16;
-        assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c((RES - 1) as f64);
-        let mut index = [0usize; MAX_WIDTH];
-        for (j, k) in index.iter_mut().enumerate().take(L::WIDTH) {
+        if L::WIDTH == 1 {
             // x ≥ 0, so truncation is the floor (and no libm `floor` call on the scalar
             // paths, which baseline x86-64 has no instruction for). NaN, which unit
             // directions never give, maps to 0.
-            *k = (x.lane(j).f64() as usize).min(RES - 2);
+            let i = (x.lane(0).f64() as usize).min(RES - 2);
+            let w = x - L::c(i as f64);
+            let (v0, v1) = (L::c(self.transmittance[i]), L::c(self.transmittance[i + 1]));
+            return v0 + (v1 - v0) * w;
         }
-        let w = x - L::from_fn(|j| <L::Elem as Real>::of(index[j] as f64));
-        let v0 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j]]));
-        let v1 = L::from_fn(|j| <L::Elem as Real>::of(self.transmittance[index[j] + 1]));
+        // NaN lanes read node 0 (and give NaN through `w`).
+        let i = lanes::min(x.floor_(), L::c((RES - 2) as f64));
+        let w = x - i;
+        let v0 = L::lookup_f32_(&self.lane_transmittance, i);
+        let v1 = L::lookup_f32_(&self.lane_transmittance, i + L::c(1.0));
         v0 + (v1 - v0) * w
     }
 }
