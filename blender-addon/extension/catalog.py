@@ -27,6 +27,24 @@ SECTIONS = (
     ("Sparkle", ("sparkle",)),
 )
 
+#: The artist controls on ``material.lacquer`` (not core parameters), shown in their own box.
+ARTIST = ("orange_peel_um", "orange_peel_wavelength_mm", "flake_scale")
+
+
+def fit_quality_lines(err: dict) -> list:
+    """The core's fit error (``albedo_rms``, ``brdf_rel_rms``, …) as sentences for the panel."""
+    lines = []
+    rel = err.get("brdf_rel_rms")
+    if rel is not None:
+        grade = "excellent" if rel < 0.03 else "good" if rel < 0.07 else "fair" if rel < 0.12 else "rough"
+        lines.append(f"Match to the exact paint: {grade} (BRDF within {100 * rel:.1f} % RMS)")
+    if "albedo_rms" in err:
+        extra = f", worst {100 * err['albedo_max']:.1f} %" if "albedo_max" in err else ""
+        lines.append(f"Brightness (albedo) off by {100 * err['albedo_rms']:.2f} % RMS{extra}")
+    if "snr_db" in err:
+        lines.append(f"Signal-to-noise of the fit: {err['snr_db']:.1f} dB")
+    return lines
+
 LABELS = {
     "base_color": "Pigment Color",
     "coat_ior": "Coat IOR",

@@ -48,7 +48,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 4
+NODE_GROUP_VERSION = 5
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -76,6 +76,30 @@ INPUTS = (
     ("Coat Tint", "NodeSocketColor", (1.0, 1.0, 1.0), None, None, "Principled Coat Tint"),
     ("Sparkle", "NodeSocketFloat", 1.0, 0.0, 1.0, "1 = individual flakes at their true size, 0 = the mean lobe"),
     ("Pearl Size", "NodeSocketFloat", 15.0, 0.1, 10000.0, "Pearl flake diameter in µm"),
+    # Artist controls (version 5), not fitted: set from the material's Lacquer settings or linked.
+    ("Normal", "NodeSocketVector", (0.0, 0.0, 0.0), None, None,
+     "Shading normal of the whole paint (Normal Map or Bump output); unconnected: the surface's"),
+    ("Coat Normal", "NodeSocketVector", (0.0, 0.0, 0.0), None, None,
+     "Normal of the clearcoat's surface; unconnected: Normal"),
+    ("Orange Peel", "NodeSocketFloat", 0.0, 0.0, 1000.0,
+     "RMS height of the clearcoat's waviness in µm (0 = a perfectly flat coat)"),
+    ("Orange Peel Wavelength", "NodeSocketFloat", 3.0, 0.01, 1000.0, "Wavelength of the orange peel in mm"),
+    ("Flake Scale", "NodeSocketFloat", 1.0, 0.01, 100.0,
+     "Multiplier on flake and pearl size (1 = the paint's physical size)"),
+)
+
+#: Orange-peel waves: (unit direction in the object's metric coordinates, phase). The render
+#: crate's table (rust-core/render/src/perturb.rs, ``PEEL_WAVES``), which LACQUER evaluates; the
+#: test ``test_orange_peel_tilts_the_coat_in_both_engines`` checks the tilt LACQUER renders.
+PEEL_WAVES = (
+    ((0.347985273, 0.000000000, 0.937500000), 0.0),
+    ((-0.429857439, 0.393784626, 0.812500000), 1.3),
+    ((0.063487195, -0.723403847, 0.687500000), 2.6),
+    ((0.503055598, 0.656146946, 0.562500000), 3.9),
+    ((-0.885472495, -0.156627617, 0.437500000), 0.7),
+    ((0.801498139, -0.509847509, 0.312500000), 2.0),
+    ((-0.255000119, 0.948587734, 0.187500000), 3.3),
+    ((-0.460005935, -0.885713436, 0.062500000), 4.6),
 )
 
 
@@ -139,7 +163,9 @@ def _new_interface(group):
         s.description = desc
         if stype == "NodeSocketColor":
             s.default_value = (*default, 1.0)
-        else:
+        elif stype == "NodeSocketVector":
+            s.default_value = default
+            s.hide_value = True  # a normal is connected, not typed
             s.default_value = default
             s.min_value, s.max_value = lo, hi
     group.interface.new_socket(name="BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
@@ -152,7 +178,14 @@ def _build(group):
     I = gi.outputs  # noqa: E741  (group inputs by name)
 
     geo = b.node("ShaderNodeNewGeometry", -1800, 600)
-    N = geo.outputs["Normal"]
+
+    def linked_or(vec, fallback, x, y):
+        """``normalize(vec)`` where a normal is connected (non-zero), else ``fallback``."""
+        use = b.math("GREATER_THAN", b.vmath("LENGTH", vec, x=x, y=y), 1e-6, x=x + 100, y=y)
+        return b.vmath("NORMALIZE", b.mix("VECTOR", use, fallback, vec, x=x + 200, y=y), x=x + 300, y=y)
+
+    # The paint's normal: the Normal input when connected (normal map, bump), else the surface's.
+    N = linked_or(I["Normal"], geo.outputs["Normal"], -2200, 600)
     incoming = geo.outputs["Incoming"]
     texco = b.node("ShaderNodeTexCoord", -1800, 900)
     # Object coordinates in metres on the object, so flakes stick to it: object coordinates ×
@@ -194,7 +227,8 @@ def _build(group):
 
     def layer(size, coverage, spread, offset, y0):
         """Voronoi flake cells → (weight, shading normal, roughness) of one flake population."""
-        cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, size, x=-1400, y=y0 + 150)
+        scaled = b.math("MULTIPLY", size, I["Flake Scale"], x=-1500, y=y0 + 150)
+        cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, scaled, x=-1400, y=y0 + 150)
         coords = b.vmath("ADD", P, offset, x=-1400, y=y0 + 100) if offset else P
         vor = b.node("ShaderNodeTexVoronoi", -1250, y0, voronoi_dimensions="3D", feature="F1")
         b.feed(vor.inputs["Vector"], coords)
@@ -253,12 +287,39 @@ def _build(group):
     pearl_cov = b.math("MINIMUM", b.math("DIVIDE", I["Pearl Coverage"], free, x=-1400, y=-350), 1.0, x=-1300, y=-350)
     pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], pearl_cov, I["Pearl Spread"], (37.11, 53.71, 19.31), -500)
 
+    # The coat's normal: Coat Normal when connected, else Normal; tilted by orange peel, the
+    # height field h(c) = A √(2/K) Σ_k sin(2π d_k·c/λ + φ_k) over the metric coordinates c = P
+    # (metres on the object): ∂h/∂c = A √(2/K) (2π/λ) Σ_k cos(…) d_k, taken to world space as
+    # R ∂h/∂c = M S⁻¹ ∂h/∂c (M the object's matrix, S its per-axis scale; c = S·p·unit), and
+    # n' = normalize(n − (G − (G·n) n)) with the world gradient G (metres per metre).
+    coat_n = linked_or(I["Coat Normal"], N, -2200, 400)
+    k = b.math("DIVIDE", 2.0 * math.pi * 1e3, I["Orange Peel Wavelength"], x=-1400, y=2000)  # 1/m
+    ak = b.math("MULTIPLY", b.math("MULTIPLY", I["Orange Peel"], 1e-6 * math.sqrt(2.0 / len(PEEL_WAVES)),
+                                   x=-1400, y=2050), k, x=-1300, y=2050)
+    grad = None
+    for j, (d, phi) in enumerate(PEEL_WAVES):
+        y = 2100 + 60 * j
+        arg = b.math("ADD", b.math("MULTIPLY", b.vmath("DOT_PRODUCT", P, d, x=-1200, y=y), k, x=-1100, y=y), phi,
+                     x=-1000, y=y)
+        term = b.vmath("SCALE", d, scale=b.math("MULTIPLY", b.math("COSINE", arg, x=-900, y=y), ak, x=-800, y=y),
+                       x=-700, y=y)
+        grad = term if grad is None else b.vmath("ADD", grad, term, x=-600, y=y)
+    g_obj = b.vmath("DIVIDE", grad, world_scale.outputs["Vector"], x=-500, y=2100)
+    gt = b.node("ShaderNodeVectorTransform", -400, 2100, vector_type="VECTOR", convert_from="OBJECT",
+                convert_to="WORLD")
+    b.feed(gt.inputs["Vector"], g_obj)
+    G = gt.outputs["Vector"]
+    tangential = b.vmath("SUBTRACT", G, b.vmath("SCALE", coat_n, scale=b.vmath("DOT_PRODUCT", G, coat_n, x=-300,
+                                                                                    y=2000), x=-200, y=2000),
+                         x=-100, y=2000)
+    coat_n = b.vmath("NORMALIZE", b.vmath("SUBTRACT", coat_n, tangential, x=0, y=2000), x=100, y=2000)
+
     def principled(x, y, label):
         p = b.node("ShaderNodeBsdfPrincipled", x, y)
         p.label = label
         for name in ("Coat Weight", "Coat Roughness", "Coat IOR", "Coat Tint"):
             b.feed(p.inputs[name], I[name])
-        b.feed(p.inputs["Coat Normal"], N)
+        b.feed(p.inputs["Coat Normal"], coat_n)
         return p
 
     base = principled(500, 900, "Basecoat (pigment)")
@@ -397,6 +458,24 @@ def group_node(mat, create=True):
     return node
 
 
+def artist_inputs(settings) -> dict:
+    """The node group inputs set from the material's artist controls (not fitted)."""
+    return {"Orange Peel": float(settings.orange_peel_um),
+            "Orange Peel Wavelength": float(settings.orange_peel_wavelength_mm),
+            "Flake Scale": float(settings.flake_scale)}
+
+
+def write_artist_inputs(mat) -> None:
+    """Writes the artist controls to the material's group node (no refit: nothing is fitted)."""
+    node = mat.node_tree.nodes.get(NODE_NAME) if mat.node_tree else None
+    if node is None or node.bl_idname != "ShaderNodeGroup":
+        return
+    for name, value in artist_inputs(mat.lacquer).items():
+        sock = node.inputs.get(name)
+        if sock is not None and not sock.is_linked:
+            sock.default_value = value
+
+
 class PaintRejected(ValueError):
     """A paint edit the core refused; the previous valid paint was kept."""
 
@@ -434,6 +513,7 @@ def apply_fit(mat, material: dict, result, error):
     inputs.setdefault("Flake Size", material["flake_size_um"])
     inputs.setdefault("Sparkle", 1.0 if material.get("sparkle", True) else 0.0)
     inputs["Pearl Size"] = material["pearl_size_um"]
+    inputs.update(artist_inputs(settings))
     node = group_node(mat)
     for name, value in inputs.items():
         sock = node.inputs.get(name)

@@ -673,6 +673,106 @@ def engine_smoke(out: str, size: int) -> dict:
     return rep
 
 
+def _normal_map_image(n=64, waves=4, tilt=0.4):
+    """A tangent-space normal map (Non-Color float image): stripes along u, the normal tilted
+    toward the tangent by ``tilt · sin(2π waves u)`` radians."""
+    import numpy as np
+
+    u = (np.arange(n) + 0.5) / n
+    theta = tilt * np.sin(2 * np.pi * waves * u)
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[..., 0] = 0.5 * (np.sin(theta)[None, :] + 1.0)
+    rgba[..., 1] = 0.5
+    rgba[..., 2] = 0.5 * (np.cos(theta)[None, :] + 1.0)
+    img = bpy.data.images.new("lacquer test normal map", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    return img
+
+
+def artist_smoke(out: str, size: int) -> dict:
+    """Artist controls (issue 15 item 2): a normal map on the node's Normal input renders in
+    both engines (their shading normals compared through the Normal / Denoising Normal passes),
+    orange peel tilts the coat (LACQUER's normal pass against the height field's predicted RMS
+    slope; Cycles' image changes), Flake Scale reaches both engines, angles are shown in degrees
+    and the fit error reads as text."""
+    import numpy as np
+
+    export = _addon_module("export")
+    catalog = _addon_module("catalog")
+    rep: dict = {}
+    scene = fresh_scene(size, 16)
+    set_world(scene, (0.3, 0.3, 0.3))
+    bpy.ops.mesh.primitive_plane_add(size=0.04, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    add_camera(scene, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0), lens=900.0)  # 2 cm across the frame
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, "gold_flake_8")
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    node.inputs["Sparkle"].default_value = 0.0  # mean lobe: flake normals = the paint's normal
+    scene.lacquer.sparkle = False
+    scene.view_layers[0].use_pass_normal = True
+
+    def passes(tag, cycles=True):
+        compositor(scene, "Denoising Normal", denoise=False)
+        render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer_normal.exr"))
+        disable_compositor(scene)
+        render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer.exr"))
+        if cycles:
+            compositor(scene, "Normal", denoise=False)
+            render(scene, "CYCLES", os.path.join(out, f"artist_{tag}_cycles_normal.exr"))
+            disable_compositor(scene)
+            render(scene, "CYCLES", os.path.join(out, f"artist_{tag}_cycles.exr"))
+
+    t = time.perf_counter()
+    passes("plain")
+    # Image Texture (Non-Color) → Normal Map (tangent space, the plane's UV map) → Normal.
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = _normal_map_image()
+    nm = tree.nodes.new("ShaderNodeNormalMap")
+    nm.space = "TANGENT"
+    nm.uv_map = plate.data.uv_layers[0].name
+    tree.links.new(tex.outputs["Color"], nm.inputs["Color"])
+    tree.links.new(nm.outputs["Normal"], node.inputs["Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["normal_map_exported"] = any("normal_map" in m for m in job["scene"]["meshes"].values())
+    rep["normal_map_messages"] = report.lines()
+    passes("normalmap")
+    tree.links.remove(node.inputs["Normal"].links[0])
+    # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
+    mat.lacquer.orange_peel_um = 50.0
+    mat.lacquer.orange_peel_wavelength_mm = 8.0
+    rep["peel_node_inputs"] = [node.inputs["Orange Peel"].default_value,
+                               node.inputs["Orange Peel Wavelength"].default_value]
+    passes("peel")
+    mat.lacquer.orange_peel_um = 0.0
+    # The orange-peel waves' predicted RMS slope on this plane (the xy plane of the object):
+    # A k √(Σ |d_xy|² / K) (each wave's gradient a k cos(·) d, a = A √(2/K)).
+    ng = _addon_module("nodegroup")
+    dxy2 = sum(d[0] ** 2 + d[1] ** 2 for d, _ in ng.PEEL_WAVES) / len(ng.PEEL_WAVES)
+    rep["peel_predicted_rms_slope"] = 50e-6 * 2 * math.pi / 8e-3 * math.sqrt(dxy2)
+    # Flake Scale: the node group's input and LACQUER's sparkle scale.
+    mat.lacquer.flake_scale = 2.0
+    job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    rep["flake_scale"] = {"node": node.inputs["Flake Scale"].default_value,
+                          "surface_scale_mm": paint[0]["surface_scale_mm"]}
+    mat.lacquer.flake_scale = 1.0
+    # Units and readable text.
+    prop = mat.lacquer.bl_rna.properties["flake_orientation_deg"]
+    rep["angle"] = {"subtype": prop.subtype, "unit": prop.unit,
+                    "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
+                    "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
+    rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["seconds"] = time.perf_counter() - t
+    del np
+    return rep
+
+
 def editing_smoke(out: str, size: int) -> dict:
     """Editing that does not freeze (issue 15 item 7) and errors that lose nothing (issue 16
     item 7): a refit on the worker thread applied by the timer, keyframed paint parameters
@@ -888,7 +988,7 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
-            elif name in ("engine", "editing"):
+            elif name in ("engine", "editing", "artist"):
                 smokes.append(name)  # after the scenes: editing opens and saves files
             elif name == "flakescale":
                 for u in FLAKESCALE_UNITS:
@@ -941,7 +1041,8 @@ def main(argv):
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
         for name in smokes:
             t = time.perf_counter()
-            report[name] = (engine_smoke if name == "engine" else editing_smoke)(os.path.abspath(a.out), a.size)
+            smoke = {"engine": engine_smoke, "editing": editing_smoke, "artist": artist_smoke}[name]
+            report[name] = smoke(os.path.abspath(a.out), a.size)
             report[name]["smoke_seconds"] = time.perf_counter() - t
             print(f"{name} smoke in {report[name]['smoke_seconds']:.2f} s", flush=True)
         if a.png and "readme" in a.scenes.split(","):

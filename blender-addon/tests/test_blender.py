@@ -368,10 +368,10 @@ def smokes():
     """The engine and editing smokes (scripts/scenes.py engine_smoke, editing_smoke) in their own
     bpy session, 64² renders."""
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-smokes-"))
-    log = _run(["--zip", _zip(), "--out", str(out), "--size", "64", "--scenes", "engine,editing"],
+    log = _run(["--zip", _zip(), "--out", str(out), "--size", "64", "--scenes", "engine,artist,editing"],
                out / "user-resources")
     report = json.loads((out / "report.json").read_text())
-    FIGURES["smoke_seconds"] = {k: round(report[k]["smoke_seconds"], 2) for k in ("engine", "editing")}
+    FIGURES["smoke_seconds"] = {k: round(report[k]["smoke_seconds"], 2) for k in ("engine", "artist", "editing")}
     return {"dir": out, "report": report, "log": log}
 
 
@@ -524,6 +524,75 @@ def test_linked_node_groups_are_left_untouched(smokes):
     assert "Lacquer Coated Paint" not in li["local_groups"], li
     lp = smokes["report"]["editing"]["load_post"]
     assert li["version_after"] == lp["version_after"] - 1, (li, lp)
+
+
+def _normals(path, alpha_from):
+    n = read_exr(path)[..., :3].astype(np.float64)
+    mask = read_exr(alpha_from)[..., 3] > 0.999
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    return n / np.maximum(length, 1e-12), mask & (length[..., 0] > 0.5)
+
+
+def test_normal_map_on_the_normal_input_renders_in_both_engines(smokes):
+    """An Image Texture → Normal Map (tangent space) on the Lacquer node's Normal input: LACQUER
+    exports it and its image changes; its shading normals (Denoising Normal) equal Cycles'
+    (Normal pass, Sparkle 0 so every closure has the paint's normal) pixel by pixel."""
+    a = smokes["report"]["artist"]
+    d = smokes["dir"]
+    assert a["normal_map_exported"], a
+    lq_n, m1 = _normals(d / "artist_normalmap_lacquer_normal.exr", d / "artist_normalmap_lacquer.exr")
+    cy_n, m2 = _normals(d / "artist_normalmap_cycles_normal.exr", d / "artist_normalmap_cycles.exr")
+    plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
+    mask = m1 & m2
+    assert mask.sum() > 0.5 * mask.size
+    ang = np.degrees(np.arccos(np.clip((lq_n * cy_n).sum(-1), -1, 1)))[mask]
+    tilt = np.degrees(np.arccos(np.clip((lq_n * plain_n).sum(-1), -1, 1)))[mask]
+    lq, plain = read_exr(d / "artist_normalmap_lacquer.exr"), read_exr(d / "artist_plain_lacquer.exr")
+    change = float(np.abs(luminance(lq[..., :3]) - luminance(plain[..., :3]))[mask].mean()
+                   / luminance(plain[..., :3])[mask].mean())
+    FIGURES["normal_map"] = {"angle_lacquer_vs_cycles_deg_mean": float(ang.mean()),
+                             "angle_deg_p99": float(np.percentile(ang, 99)),
+                             "tilt_deg_max": float(tilt.max()), "lacquer_image_change": change}
+    print(f"\nNormal map: LACQUER vs Cycles shading normal {ang.mean():.3f}° mean, "
+          f"{np.percentile(ang, 99):.3f}° p99; tilt up to {tilt.max():.1f}°; image change {change:.3f}")
+    # The map tilts normals by up to 0.4 rad = 22.9° (a pixel averages part of a stripe).
+    assert tilt.max() > 15.0, FIGURES["normal_map"]
+    assert change > 0.05, FIGURES["normal_map"]
+    assert ang.mean() < 1.0 and np.percentile(ang, 99) < 3.0, FIGURES["normal_map"]
+
+
+def test_orange_peel_tilts_the_coat_in_both_engines(smokes):
+    """Orange peel (50 µm RMS at 8 mm) on the plate: LACQUER's shading normals tilt with the RMS
+    slope the height field predicts, and both engines' images change."""
+    a = smokes["report"]["artist"]
+    d = smokes["dir"]
+    assert a["peel_node_inputs"] == [50.0, 8.0], a
+    peel_n, mask = _normals(d / "artist_peel_lacquer_normal.exr", d / "artist_peel_lacquer.exr")
+    plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
+    slope = np.tan(np.arccos(np.clip((peel_n * plain_n).sum(-1), -1, 1)))[mask]
+    rms = float(np.sqrt((slope ** 2).mean()))
+    changes = {}
+    for engine in ("lacquer", "cycles"):
+        on, off = read_exr(d / f"artist_peel_{engine}.exr"), read_exr(d / f"artist_plain_{engine}.exr")
+        changes[engine] = float(np.abs(luminance(on[..., :3]) - luminance(off[..., :3]))[mask].mean()
+                                / luminance(off[..., :3])[mask].mean())
+    FIGURES["orange_peel"] = {"rms_slope": rms, "predicted": a["peel_predicted_rms_slope"], "image_change": changes}
+    print(f"\nOrange peel: RMS slope {rms:.4f} (predicted {a['peel_predicted_rms_slope']:.4f}); "
+          f"image change {changes}")
+    assert abs(rms / a["peel_predicted_rms_slope"] - 1.0) < 0.2, FIGURES["orange_peel"]
+    assert changes["lacquer"] > 0.01 and changes["cycles"] > 0.01, FIGURES["orange_peel"]
+
+
+def test_flake_scale_units_and_fit_text(smokes):
+    """Flake Scale 2 reaches the node group and LACQUER (sparkle surface scale 1000/2 mm);
+    the flake orientation is an angle property (degrees in the core's JSON); the fit error is
+    sentences, not raw keys."""
+    a = smokes["report"]["artist"]
+    assert a["flake_scale"] == {"node": 2.0, "surface_scale_mm": 500.0}, a
+    assert a["angle"]["subtype"] == "ANGLE" and a["angle"]["unit"] == "ROTATION", a
+    assert abs(a["angle"]["json_deg"] - a["angle"]["preset_deg"]) < 1e-3, a
+    assert a["fit_text"] and not any("_rms" in line or "snr_db" in line for line in a["fit_text"]), a
+    assert a["fit_text"][0].startswith("Match to the exact paint:"), a
 
 
 if __name__ == "__main__":
