@@ -111,6 +111,29 @@ def preset_label(name: str) -> str:
     return name.replace("_", " ").capitalize()
 
 
+#: The asset library's catalogues (paths in the Asset Browser), in order.
+ASSET_CATALOGS = ("Lacquer/Thesis series", "Lacquer/Solid", "Lacquer/Metallic", "Lacquer/Pearlescent")
+
+
+def asset_catalog(name: str) -> str:
+    """The asset catalogue of a preset: the thesis series first, then by what the paint holds."""
+    if is_thesis(name):
+        return "Lacquer/Thesis series"
+    m = preset(name)
+    if m.get("pearl_density", 0.0) > 0.0:
+        return "Lacquer/Pearlescent"
+    if m.get("flake_density", 0.0) > 0.0 or m.get("base_metallic", 0.0) > 0.0:
+        return "Lacquer/Metallic"
+    return "Lacquer/Solid"
+
+
+def catalog_uuid(path: str) -> str:
+    """A fixed UUID per catalogue path (the same in every build)."""
+    import uuid
+
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, "lacquer-asset-catalog:" + path))
+
+
 def is_thesis(name: str) -> bool:
     """The thesis' gold/silver series (density and size)."""
     return re.fullmatch(r"(gold|silver)_flake_\d+(_size_\d+)?", name) is not None

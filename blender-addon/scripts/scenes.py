@@ -7,7 +7,7 @@ settings, assigns presets with the extension's operator, renders, and writes EXR
 report (timings, fit, engine messages).
 
     BLENDER_USER_RESOURCES=$(mktemp -d) .venv-blender/bin/python blender-addon/scripts/scenes.py \
-        --zip dist/lacquer-0.1.0.zip --out out/ --size 128 --spp 16 --scenes compare,density
+        --zip dist/lacquer-0.1.0-linux_x64.zip --out out/ --size 128 --spp 16 --scenes compare,density
 
 Scenes:
   compare   gold_flake_8 on a 10 cm sphere, uniform world and a soft area light, film transparent
@@ -773,6 +773,68 @@ def artist_smoke(out: str, size: int) -> dict:
     return rep
 
 
+def assets_smoke(out: str, size: int) -> dict:
+    """The bundled asset library (issue 15 item 1): registered in the preferences, one asset per
+    preset in its catalogue with a core-rendered preview, and an appended asset on an object is a
+    working Lacquer paint (parameters, node group, LACQUER render)."""
+    import numpy as np
+
+    assets = _addon_module("assets")
+    catalog = _addon_module("catalog")
+    export = _addon_module("export")
+    props = _addon_module("props")
+    ng = _addon_module("nodegroup")
+    rep: dict = {}
+    lib = assets.find_library()
+    rep["library"] = {"registered": lib is not None, "name": lib.name if lib else None,
+                      "blend": assets.library_blend()}
+    blend = assets.library_blend()
+    with bpy.data.libraries.load(blend, assets_only=True) as (src, _dst):
+        rep["asset_materials"] = sorted(src.materials)
+    rep["preset_labels"] = sorted(label for _, label, _, _ in catalog.presets())
+    cats = open(os.path.join(assets.library_dir(), "blender_assets.cats.txt")).read()
+    rep["catalogs"] = [line.split(":")[1] for line in cats.splitlines() if line and line[0] not in "#V"]
+    rep["icons"] = {name: assets.icon(name) for name, _, _, _ in catalog.presets()}
+    scene = fresh_scene(size, 16)
+    add_light(scene, "SUN", (0.3, -0.5, 1.0), (0.0, 0.0, 0.0), energy=3.0)
+    set_world(scene, (0.2, 0.2, 0.2))
+    ball = sphere(scene, 0.05)
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    per_preset = {}
+    for name in ("gold_flake_8", "pearl_blue", "solid_red"):
+        mat = assets.append_material(name)
+        ball.data.materials.clear()
+        ball.data.materials.append(mat)
+        node = mat.node_tree.nodes.get(ng.NODE_NAME)
+        got = props.material_json(mat.lacquer)
+        want = dict(catalog.preset(name))
+        same = all(abs(got[k] - v) < 1e-4 if isinstance(v, float) else
+                   (np.allclose(got[k], v, atol=1e-4) if isinstance(v, list) else got[k] == v)
+                   for k, v in want.items() if k in got)
+        cat_path = next((p for p in catalog.ASSET_CATALOGS if mat.asset_data is not None and
+                         catalog.catalog_uuid(p) == mat.asset_data.catalog_id), None)
+        job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+        models = [o["material"].get("model") for o in job["scene"]["objects"]]
+        path = os.path.join(out, f"assets_{name}_lacquer.exr")
+        render(scene, "LACQUER", path)
+        img = _stats(path)
+        pv = mat.preview
+        pix = np.empty(pv.image_size[0] * pv.image_size[1] * 4, np.float32)
+        pv.image_pixels_float.foreach_get(pix)
+        per_preset[name] = {
+            "enabled": mat.lacquer.enabled, "preset": mat.lacquer.preset, "params_match": bool(same),
+            "group": node.node_tree.name if node is not None else None,
+            "group_version": node.node_tree.get("lacquer_version") if node is not None else None,
+            "fit_inputs": bool(mat.lacquer.fit_inputs), "coverage": node.inputs["Flake Coverage"].default_value,
+            "expected_coverage": json.loads(mat.lacquer.fit_inputs).get("Flake Coverage"),
+            "catalog": cat_path, "expected_catalog": catalog.asset_catalog(name), "models": models,
+            "lacquer_mean": float(img[..., :3].mean()), "preview_size": list(pv.image_size),
+            "preview_mean": float(pix.reshape(-1, 4)[:, :3].mean()) if pix.size else 0.0}
+    rep["applied"] = per_preset
+    rep["local_groups"] = [g.name for g in bpy.data.node_groups if g.name.startswith(ng.GROUP_NAME)]
+    return rep
+
+
 def editing_smoke(out: str, size: int) -> dict:
     """Editing that does not freeze (issue 15 item 7) and errors that lose nothing (issue 16
     item 7): a refit on the worker thread applied by the timer, keyframed paint parameters
@@ -988,7 +1050,7 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
-            elif name in ("engine", "editing", "artist"):
+            elif name in ("engine", "editing", "artist", "assets"):
                 smokes.append(name)  # after the scenes: editing opens and saves files
             elif name == "flakescale":
                 for u in FLAKESCALE_UNITS:
@@ -1041,7 +1103,8 @@ def main(argv):
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
         for name in smokes:
             t = time.perf_counter()
-            smoke = {"engine": engine_smoke, "editing": editing_smoke, "artist": artist_smoke}[name]
+            smoke = {"engine": engine_smoke, "editing": editing_smoke, "artist": artist_smoke,
+                     "assets": assets_smoke}[name]
             report[name] = smoke(os.path.abspath(a.out), a.size)
             report[name]["smoke_seconds"] = time.perf_counter() - t
             print(f"{name} smoke in {report[name]['smoke_seconds']:.2f} s", flush=True)

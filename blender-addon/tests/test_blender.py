@@ -368,10 +368,10 @@ def smokes():
     """The engine and editing smokes (scripts/scenes.py engine_smoke, editing_smoke) in their own
     bpy session, 64² renders."""
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-smokes-"))
-    log = _run(["--zip", _zip(), "--out", str(out), "--size", "64", "--scenes", "engine,artist,editing"],
+    log = _run(["--zip", _zip(), "--out", str(out), "--size", "64", "--scenes", "engine,artist,assets,editing"],
                out / "user-resources")
     report = json.loads((out / "report.json").read_text())
-    FIGURES["smoke_seconds"] = {k: round(report[k]["smoke_seconds"], 2) for k in ("engine", "artist", "editing")}
+    FIGURES["smoke_seconds"] = {k: round(report[k]["smoke_seconds"], 2) for k in ("engine", "artist", "assets", "editing")}
     return {"dir": out, "report": report, "log": log}
 
 
@@ -593,6 +593,31 @@ def test_flake_scale_units_and_fit_text(smokes):
     assert abs(a["angle"]["json_deg"] - a["angle"]["preset_deg"]) < 1e-3, a
     assert a["fit_text"] and not any("_rms" in line or "snr_db" in line for line in a["fit_text"]), a
     assert a["fit_text"][0].startswith("Match to the exact paint:"), a
+
+
+def test_asset_library_loads_and_an_asset_is_a_working_paint(smokes):
+    """The bundled library is registered ("Lacquer Paints"), holds one material per core preset
+    in the four catalogues with a preview rendered by the core, and an appended asset on an
+    object is a Lacquer paint: the preset's parameters, the current node group with its fit,
+    LACQUER renders it as coated_paint."""
+    a = smokes["report"]["assets"]
+    FIGURES["assets"] = {k: {kk: v[kk] for kk in ("lacquer_mean", "preview_mean", "catalog")}
+                         for k, v in a["applied"].items()}
+    assert a["library"]["registered"] and a["library"]["name"] == "Lacquer Paints", a["library"]
+    assert a["asset_materials"] == a["preset_labels"], (a["asset_materials"], a["preset_labels"])
+    assert a["catalogs"] == ["Lacquer/Thesis series", "Lacquer/Solid", "Lacquer/Metallic", "Lacquer/Pearlescent"]
+    assert all(v > 0 for v in a["icons"].values()), a["icons"]
+    for name, r in a["applied"].items():
+        assert r["enabled"] and r["preset"] == name and r["params_match"], (name, r)
+        assert r["group"] == "Lacquer Coated Paint" and r["group_version"] == 5, (name, r)
+        assert r["fit_inputs"] and abs(r["coverage"] - r["expected_coverage"]) < 1e-6, (name, r)
+        assert r["catalog"] == r["expected_catalog"], (name, r)
+        assert r["models"] == ["coated_paint"], (name, r)
+        assert r["lacquer_mean"] > 1e-3 and r["preview_size"] == [96, 96] and r["preview_mean"] > 0.02, (name, r)
+    assert a["applied"]["gold_flake_8"]["catalog"] == "Lacquer/Thesis series"
+    assert a["applied"]["pearl_blue"]["catalog"] == "Lacquer/Pearlescent"
+    assert a["applied"]["solid_red"]["catalog"] == "Lacquer/Solid"
+    assert a["local_groups"] == ["Lacquer Coated Paint"], a["local_groups"]  # no duplicate group left
 
 
 if __name__ == "__main__":
