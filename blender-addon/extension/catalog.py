@@ -28,7 +28,7 @@ SECTIONS = (
 )
 
 #: The artist controls on ``material.lacquer`` (not core parameters), shown in their own box.
-ARTIST = ("orange_peel_um", "orange_peel_wavelength_mm", "flake_scale")
+ARTIST = ("orange_peel_um", "orange_peel_wavelength_mm", "flake_scale", "sparkle_lod")
 
 
 def fit_quality_lines(err: dict) -> list:

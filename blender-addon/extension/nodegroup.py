@@ -86,6 +86,11 @@ INPUTS = (
     ("Orange Peel Wavelength", "NodeSocketFloat", 3.0, 0.01, 1000.0, "Wavelength of the orange peel in mm"),
     ("Flake Scale", "NodeSocketFloat", 1.0, 0.01, 100.0,
      "Multiplier on flake and pearl size (1 = the paint's physical size)"),
+    ("Pixel Angle", "NodeSocketFloat", 0.0, 0.0, 1.0,
+     "Radians per pixel of the render camera (set by the extension; 0 = no level of detail)"),
+    ("Sparkle Samples", "NodeSocketFloat", 64.0, 1.0, 1e6,
+     "Samples per pixel of the render (set by the extension): a pixel footprint holding more flake "
+     "cells than this fades them into the mean lobe"),
 )
 
 #: Orange-peel waves: (unit direction in the object's metric coordinates, phase). The render
@@ -223,11 +228,32 @@ def _build(group):
     helper = b.mix("VECTOR", polar, (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), x=-1150, y=700)
     T = b.vmath("NORMALIZE", b.vmath("CROSS_PRODUCT", N, helper, x=-1000, y=700), x=-850, y=700)
     Bt = b.vmath("CROSS_PRODUCT", N, T, x=-700, y=700)
-    sparkle = I["Sparkle"]
+    # Level of detail: the pixel footprint's side in metres, view distance × Pixel Angle / √(I·N)
+    # (the footprint stretches as 1/cos along the view on a tilted surface; ≥ 0.05 clamps the
+    # grazing limit), as Cycles has no ray differentials in shader nodes.
+    cam = b.node("ShaderNodeCameraData", -2200, 1600)
+    view_m = b.math("MULTIPLY", cam.outputs["View Distance"], unit.outputs["Fac"], x=-2000, y=1600)
+    cos_v = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", geo.outputs["Incoming"], N, x=-2000, y=1650), 0.05,
+                   x=-1900, y=1650)
+    footprint = b.math("DIVIDE", b.math("MULTIPLY", view_m, I["Pixel Angle"], x=-1800, y=1600),
+                       b.math("SQRT", cos_v, x=-1800, y=1650), x=-1700, y=1600)
 
     def layer(size, coverage, spread, offset, y0):
         """Voronoi flake cells → (weight, shading normal, roughness) of one flake population."""
         scaled = b.math("MULTIPLY", size, I["Flake Scale"], x=-1500, y=y0 + 150)
+        # Cells per footprint n = (footprint / diameter)²; the cells keep the weight
+        # w = min(1, √(S / n)) (S = Sparkle Samples) and the mean lobe takes the rest. A pixel's S
+        # samples see S random cells: their mean varies as σ²/S where the footprint's true mean
+        # varies as σ²/n; with w² σ²/S = σ²/n the pixel keeps the physical glint variance of n
+        # cells (LACQUER's, whose sparkle counts the flakes in each footprint) and converges to
+        # the mean lobe as the footprint grows, instead of showing sampling noise.
+        n_cells = b.math("POWER", b.math("DIVIDE", footprint, b.math("MULTIPLY", scaled, 1e-6, x=-1600, y=y0 + 250),
+                                         x=-1500, y=y0 + 250), 2.0, x=-1400, y=y0 + 250)
+        lod = b.math("MINIMUM", b.math("SQRT", b.math("DIVIDE", I["Sparkle Samples"],
+                                                      b.math("MAXIMUM", n_cells, 1e-12, x=-1300, y=y0 + 250),
+                                                      x=-1200, y=y0 + 250), x=-1100, y=y0 + 250), 1.0,
+                     x=-1000, y=y0 + 250)
+        sparkle = b.math("MULTIPLY", I["Sparkle"], lod, x=-900, y=y0 + 250)
         cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, scaled, x=-1400, y=y0 + 150)
         coords = b.vmath("ADD", P, offset, x=-1400, y=y0 + 100) if offset else P
         vor = b.node("ShaderNodeTexVoronoi", -1250, y0, voronoi_dimensions="3D", feature="F1")
@@ -465,8 +491,45 @@ def artist_inputs(settings) -> dict:
             "Flake Scale": float(settings.flake_scale)}
 
 
+def lod_inputs(scene) -> dict:
+    """The level-of-detail inputs for a scene's render: the camera's radians per pixel (0 without
+    a perspective camera) and Cycles' samples per pixel."""
+    angle = 0.0
+    cam = scene.camera
+    r = scene.render
+    width = r.resolution_x * r.resolution_percentage / 100.0
+    height = r.resolution_y * r.resolution_percentage / 100.0
+    if cam is not None and cam.type == "CAMERA" and cam.data.type == "PERSP" and width > 0 and height > 0:
+        fit = cam.data.sensor_fit
+        horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
+        fov = cam.data.angle_x if horizontal else cam.data.angle_y
+        angle = 2.0 * math.tan(0.5 * fov) / (width if horizontal else height)
+    # Cycles' samples whatever the current engine (the cells are sampled per path in Cycles;
+    # the value must not change when another engine renders the same file).
+    samples = scene.cycles.samples if hasattr(scene, "cycles") else 64
+    return {"Pixel Angle": float(angle), "Sparkle Samples": float(max(1, samples))}
+
+
+def write_lod_inputs(scene, materials=None) -> None:
+    """Writes :func:`lod_inputs` to the Lacquer nodes of ``materials`` (default: every local one)."""
+    values = lod_inputs(scene)
+    for mat in materials if materials is not None else bpy.data.materials:
+        if mat.library is not None or not getattr(mat, "node_tree", None) or not mat.lacquer.enabled:
+            continue
+        values["Pixel Angle"] = lod_inputs(scene)["Pixel Angle"] if mat.lacquer.sparkle_lod else 0.0
+        node = mat.node_tree.nodes.get(NODE_NAME)
+        if node is None or node.bl_idname != "ShaderNodeGroup":
+            continue
+        for name, value in values.items():
+            sock = node.inputs.get(name)
+            if sock is not None and not sock.is_linked and sock.default_value != value:
+                sock.default_value = value
+
+
 def write_artist_inputs(mat) -> None:
     """Writes the artist controls to the material's group node (no refit: nothing is fitted)."""
+    if bpy.context.scene is not None:
+        write_lod_inputs(bpy.context.scene, [mat])
     node = mat.node_tree.nodes.get(NODE_NAME) if mat.node_tree else None
     if node is None or node.bl_idname != "ShaderNodeGroup":
         return
@@ -528,6 +591,8 @@ def apply_fit(mat, material: dict, result, error):
     settings.fit_error = json.dumps(fit_error, sort_keys=True)
     settings.fit_material = json.dumps(material, sort_keys=True)
     settings.fit_message = source
+    if bpy.context.scene is not None:
+        write_lod_inputs(bpy.context.scene, [mat])
     pig = inputs.get("Pigment Color", material["base_color"])
     mat.diffuse_color = (*[float(v) for v in pig[:3]], 1.0)  # solid-mode viewport colour
     return inputs, fit_error

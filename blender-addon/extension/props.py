@@ -172,6 +172,18 @@ def _rendering() -> bool:
     return bool(getattr(bpy.app, "is_job_running", None) and bpy.app.is_job_running("RENDER"))
 
 
+@bpy.app.handlers.persistent
+def on_render_pre(scene, *_args):
+    """render_pre: the node groups' level-of-detail inputs (camera pixel angle, samples) for
+    this render's camera and resolution."""
+    from . import nodegroup
+
+    try:
+        nodegroup.write_lod_inputs(scene)
+    except Exception as e:  # noqa: BLE001  (a handler must not stop the render)
+        print(f"Lacquer: level of detail not updated: {e}")
+
+
 #: What the last load_post upgrade did (the panel and the tests read it).
 LAST_UPGRADE: dict = {}
 
@@ -306,6 +318,10 @@ def make_paint_class():
         orange_peel_wavelength_mm=FloatProperty(
             name="Peel Wavelength", default=3.0, min=0.01, max=1000.0, soft_min=0.1, soft_max=20.0,
             precision=2, description="Wavelength of the orange peel in mm", update=_on_artist_change),
+        sparkle_lod=BoolProperty(
+            name="Sparkle Level of Detail", default=True, update=_on_artist_change,
+            description="In Cycles, fade flake cells into the mean lobe where a pixel covers more cells than "
+                        "it has samples (as LACQUER's footprint sparkle converges); off: cells at any distance"),
         flake_scale=FloatProperty(
             name="Flake Scale", default=1.0, min=0.01, max=100.0, soft_max=10.0, precision=2,
             description="Multiplier on the size of flakes and pearls (1 = the paint's physical size; an "
@@ -338,11 +354,13 @@ def register():
     bpy.types.Scene.lacquer = bpy.props.PointerProperty(type=LacquerRenderSettings)
     bpy.app.handlers.frame_change_post.append(on_frame_change)
     bpy.app.handlers.load_post.append(on_load_post)
+    bpy.app.handlers.render_pre.append(on_render_pre)
 
 
 def unregister():
     for handlers, fn in ((bpy.app.handlers.frame_change_post, on_frame_change),
-                         (bpy.app.handlers.load_post, on_load_post)):
+                         (bpy.app.handlers.load_post, on_load_post),
+                       (bpy.app.handlers.render_pre, on_render_pre)):
         while fn in handlers:
             handlers.remove(fn)
     for timer in (_refit_pending, apply_finished_refits):

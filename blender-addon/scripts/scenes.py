@@ -199,6 +199,24 @@ def scene_density(size, spp, preset):
     return scene, {preset: mat}
 
 
+#: Sparkle level of detail (scene_lod): camera distances in metres (lens 900 mm, 36 mm sensor:
+#: 128 px see 0.04 × distance; pixel footprint 31 µm at 0.1 m, 1.25 mm at 4 m, for 25 µm flakes).
+LOD_DISTANCES = (0.1, 4.0)
+
+
+def scene_lod(size, spp, distance, lod):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.02, 0.02, 0.02))
+    bpy.ops.mesh.primitive_plane_add(size=0.5, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    add_camera(scene, (0.0, 0.0, distance), (0.0, 0.0, 0.0), lens=900.0)
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, "gold_flake_8")
+    mat.lacquer.sparkle_lod = lod
+    return scene, {"gold_flake_8": mat}
+
+
 def scene_readme(size, spp):
     scene = fresh_scene(size, spp)
     scene.render.film_transparent = False
@@ -1052,6 +1070,11 @@ def main(argv):
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
             elif name in ("engine", "editing", "artist", "assets"):
                 smokes.append(name)  # after the scenes: editing opens and saves files
+            elif name == "lod":
+                for dist in LOD_DISTANCES:
+                    for lod in (True, False):
+                        jobs.append((f"lod_{dist}_{'on' if lod else 'off'}",
+                                     lambda dist=dist, lod=lod: scene_lod(a.size, a.spp, dist, lod)))
             elif name == "flakescale":
                 for u in FLAKESCALE_UNITS:
                     jobs.append((f"flakescale_{u}", lambda u=u: scene_flakescale(a.size, a.spp, u)))
@@ -1069,6 +1092,12 @@ def main(argv):
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
             this = [(e, e.lower()) for e in engines]
+            if name.startswith("lod_") and name.endswith("_off"):
+                this = [("CYCLES", "cycles")]  # LACQUER has no switch: rendered once, with "on"
+            if name.startswith("lod_"):
+                node = mats["gold_flake_8"].node_tree.nodes["Lacquer Paint"]
+                report.setdefault("lod", {})[name] = {k: node.inputs[k].default_value
+                                                      for k in ("Pixel Angle", "Sparkle Samples", "Flake Size")}
             if name.startswith("flakescale_"):
                 # The cells' coordinate rendered by Cycles, and LACQUER's export read directly.
                 this = [("CYCLES", "cycles_coord")]

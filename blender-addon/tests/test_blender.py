@@ -81,7 +81,7 @@ def _run(args, resources, timeout=900):
 def renders():
     out = Path(tempfile.mkdtemp(prefix="lacquer-blender-test-"))
     log = _run(["--zip", _zip(), "--out", str(out), "--size", str(SIZE), "--spp", str(SPP),
-                "--scenes", "compare,density,lights,instances,principled,flakescale", "--blend", "--eevee"],
+                "--scenes", "compare,density,lights,instances,principled,flakescale,lod", "--blend", "--eevee"],
                out / "user-resources")
     report = json.loads((out / "report.json").read_text())
     yield {"dir": out, "report": report, "log": log}
@@ -240,6 +240,34 @@ def test_more_flakes_more_sparkle(renders):
     for engine, f in figures.items():
         print(f"  {engine}: " + ", ".join(f"{k}: {x['variance']:.4g} (mean {x['mean_luminance']:.3f})"
                                           for k, x in f.items()))
+
+
+LOD_DISTANCES = (0.1, 4.0)
+
+
+def test_sparkle_level_of_detail_follows_the_pixel_footprint(renders):
+    """gold_flake_8 on a plate seen from 0.1 m (a pixel covers ~1.6 flake cells) and 4 m (~2500):
+    Cycles' glint variance with the level of detail on and off against LACQUER's. Near, the LOD
+    leaves the cells alone (identical image); far, it fades them into the mean lobe, cutting the
+    sampling noise the cells leave at 32 spp."""
+    d = renders["dir"]
+    fig = {}
+    for dist in LOD_DISTANCES:
+        on = _sparkle_variance(read_exr(d / f"lod_{dist}_on_cycles.exr"))
+        off = _sparkle_variance(read_exr(d / f"lod_{dist}_off_cycles.exr"))
+        lq = _sparkle_variance(read_exr(d / f"lod_{dist}_on_lacquer.exr"))
+        fig[f"{dist} m"] = {"cycles_lod": on[0], "cycles_no_lod": off[0], "lacquer": lq[0],
+                            "mean_lum": {"cycles_lod": on[1], "cycles_no_lod": off[1], "lacquer": lq[1]},
+                            "inputs": renders["report"]["lod"][f"lod_{dist}_on"]}
+    FIGURES["sparkle_lod"] = fig
+    print("\nSparkle variance (luminance around its 9×9 mean), Cycles LOD / no LOD / LACQUER:")
+    for k, f in fig.items():
+        print(f"  {k}: {f['cycles_lod']:.4g} / {f['cycles_no_lod']:.4g} / {f['lacquer']:.4g}  "
+              f"(means {f['mean_lum']})")
+    near, far = fig[f"{LOD_DISTANCES[0]} m"], fig[f"{LOD_DISTANCES[1]} m"]
+    assert near["inputs"]["Pixel Angle"] > 0 and near["inputs"]["Sparkle Samples"] == SPP, near
+    assert abs(near["cycles_lod"] / near["cycles_no_lod"] - 1.0) < 1e-3, near  # w = 1: the same cells
+    assert far["cycles_lod"] < 0.5 * far["cycles_no_lod"], far
 
 
 LIGHT_CASES = ("point", "point_radius", "spot", "sun", "area", "area_disk", "area_ellipse", "world_color",

@@ -34,6 +34,14 @@
 //! little-endian `f32` (`u32` for triangles) values: the compact form hosts such as Blender
 //! write for large meshes.
 //!
+//! An entry of `meshes` may also perturb its shading normals ([`crate::perturb`]):
+//! `"normal_map": {width, height, pixels, strength, uvs, tangents, bitangents}` (a tangent-space
+//! normal map as Blender's Normal Map node reads it; `pixels` are `width × height` RGB texels,
+//! row 0 at v = 0; uvs, tangents and bitangents one per vertex) and
+//! `"orange_peel": {amplitude_um, wavelength_mm, metres_per_unit, coords}` (the clearcoat's
+//! waviness: a height field of that RMS height and wavelength over the per-vertex metric
+//! coordinates `coords`, in metres).
+//!
 //! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
 //! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
 //! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
