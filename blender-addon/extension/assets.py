@@ -44,6 +44,11 @@ def find_library():
     return None
 
 
+def preview(preset: str):
+    """The preset's thumbnail (an ImagePreview of ``bpy.utils.previews``), or None."""
+    return _previews.get(preset) if _previews is not None else None
+
+
 def icon(preset: str) -> int:
     """The preview icon id of a preset's thumbnail (0 when there is none)."""
     if _previews is None:

@@ -171,6 +171,7 @@ def _new_interface(group):
         elif stype == "NodeSocketVector":
             s.default_value = default
             s.hide_value = True  # a normal is connected, not typed
+        else:
             s.default_value = default
             s.min_value, s.max_value = lo, hi
     group.interface.new_socket(name="BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")

@@ -734,11 +734,13 @@ def artist_smoke(out: str, size: int) -> dict:
     scene.view_layers[0].use_pass_normal = True
 
     def passes(tag, cycles=True):
+        scene.render.engine = "LACQUER"  # the Render Layers node lists the engine's passes
         compositor(scene, "Denoising Normal", denoise=False)
         render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer_normal.exr"))
         disable_compositor(scene)
         render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer.exr"))
         if cycles:
+            scene.render.engine = "CYCLES"
             compositor(scene, "Normal", denoise=False)
             render(scene, "CYCLES", os.path.join(out, f"artist_{tag}_cycles_normal.exr"))
             disable_compositor(scene)
@@ -812,7 +814,11 @@ def assets_smoke(out: str, size: int) -> dict:
     rep["preset_labels"] = sorted(label for _, label, _, _ in catalog.presets())
     cats = open(os.path.join(assets.library_dir(), "blender_assets.cats.txt")).read()
     rep["catalogs"] = [line.split(":")[1] for line in cats.splitlines() if line and line[0] not in "#V"]
-    rep["icons"] = {name: assets.icon(name) for name, _, _, _ in catalog.presets()}
+    # Headless bpy makes no UI icons (icon_id 0); the previews' images load all the same.
+    rep["previews"] = {name: list(assets.preview(name).image_size) if assets.preview(name) else None
+                       for name, _, _, _ in catalog.presets()}
+    rep["icon_ids"] = [assets.icon(name) for name, _, _, _ in catalog.presets()]
+    rep["background"] = bpy.app.background
     scene = fresh_scene(size, 16)
     add_light(scene, "SUN", (0.3, -0.5, 1.0), (0.0, 0.0, 0.0), energy=3.0)
     set_world(scene, (0.2, 0.2, 0.2))
