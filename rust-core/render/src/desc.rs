@@ -301,7 +301,8 @@ pub fn perturbation(
         }
         let finite = m.pixels.0.iter().flatten().chain(m.uvs.0.iter().flatten()).all(|v| v.is_finite())
             && m.tangents.0.iter().chain(m.bitangents.0.iter()).flatten().all(|v| v.is_finite());
-        if !finite || !(m.strength.is_finite() && m.strength >= 0.0) {
+        let strength_ok = m.strength.is_finite() && m.strength >= 0.0;
+        if !finite || !strength_ok {
             return Err("normal_map: values must be finite and the strength >= 0".into());
         }
         let vecs = |v: &[[f32; 3]]| v.iter().map(|t| v3(t[0], t[1], t[2])).collect::<Vec<_>>();
@@ -318,12 +319,15 @@ pub fn perturbation(
         ));
     }
     if let Some(p) = orange_peel {
-        if !(p.amplitude_um.is_finite() && p.amplitude_um >= 0.0) {
+        let amplitude_ok = p.amplitude_um.is_finite() && p.amplitude_um >= 0.0;
+        if !amplitude_ok {
             return Err("orange_peel: amplitude_um must be >= 0".into());
         }
-        if !(p.wavelength_mm.is_finite() && p.wavelength_mm > 0.0)
-            || !(p.metres_per_unit.is_finite() && p.metres_per_unit > 0.0)
-        {
+        let lengths_ok = p.wavelength_mm.is_finite()
+            && p.wavelength_mm > 0.0
+            && p.metres_per_unit.is_finite()
+            && p.metres_per_unit > 0.0;
+        if !lengths_ok {
             return Err("orange_peel: wavelength_mm and metres_per_unit must be > 0".into());
         }
         if p.coords.0.len() != n || p.coords.0.iter().flatten().any(|v| !v.is_finite()) {
@@ -1054,10 +1058,10 @@ mod tests {
         let map = |texel: &str, n: usize| {
             format!(
                 r#", "normal_map": {{"width": 1, "height": 1, "pixels": [{texel}],
-                "uvs": {uvs}, "tangents": {t}, "bitangents": {b}}}"#,
-                uvs = format!("[{}]", vec!["[0.5, 0.5]"; n].join(",")),
-                t = format!("[{}]", vec!["[1, 0, 0]"; n].join(",")),
-                b = format!("[{}]", vec!["[0, 0, 1]"; n].join(","))
+                "uvs": [{uvs}], "tangents": [{t}], "bitangents": [{b}]}}"#,
+                uvs = vec!["[0.5, 0.5]"; n].join(","),
+                t = vec!["[1, 0, 0]"; n].join(","),
+                b = vec!["[0, 0, 1]"; n].join(",")
             )
         };
         let centre = |fb: &crate::Framebuffer| fb.color[2 * 5 + 2][0] as f64;

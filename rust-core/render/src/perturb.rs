@@ -108,11 +108,14 @@ impl OrangePeel {
     }
 }
 
+/// A normal map with its per-vertex texture coordinates, tangents and bitangents.
+pub type MappedNormals = (NormalMap, Vec<[f32; 2]>, Vec<V3>, Vec<V3>);
+
 /// A mesh's perturbations with their per-vertex data (one entry per mesh position).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Perturbation {
     /// The normal map, with per-vertex texture coordinates, tangents and bitangents.
-    pub normal_map: Option<(NormalMap, Vec<[f32; 2]>, Vec<V3>, Vec<V3>)>,
+    pub normal_map: Option<MappedNormals>,
     /// Orange peel, with per-vertex metric coordinates (m).
     pub orange_peel: Option<(OrangePeel, Vec<[f64; 3]>)>,
 }
