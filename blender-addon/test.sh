@@ -15,8 +15,9 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
 
-echo "=== build the extension zip"
-zip="$(bash "$here/build.sh")"
+echo "=== build the extension zip (with the asset library, built by bpy 4.5)"
+LACQUER_BLENDER_VENV="$root/.venv-blender" LACQUER_BPY_VERSION=4.5.15 bash "$root/scripts/blender-env.sh" >/dev/null
+zip="$(LACQUER_BLENDER_VENV="$root/.venv-blender" LACQUER_BPY_VERSION=4.5.15 bash "$here/build.sh")"
 echo "$zip"
 echo "=== tests venv"
 tests_venv="${LACQUER_VENV:-$(bash "$root/scripts/python-env.sh")}"

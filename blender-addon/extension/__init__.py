@@ -15,9 +15,9 @@ _modules = None
 
 
 def _load():
-    from . import engine, operators, props, ui
+    from . import assets, engine, operators, props, ui
 
-    return (props, operators, ui, engine)
+    return (props, assets, operators, ui, engine)
 
 
 def register():

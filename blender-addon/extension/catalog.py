@@ -27,6 +27,24 @@ SECTIONS = (
     ("Sparkle", ("sparkle",)),
 )
 
+#: The artist controls on ``material.lacquer`` (not core parameters), shown in their own box.
+ARTIST = ("orange_peel_um", "orange_peel_wavelength_mm", "flake_scale", "sparkle_lod")
+
+
+def fit_quality_lines(err: dict) -> list:
+    """The core's fit error (``albedo_rms``, ``brdf_rel_rms``, …) as sentences for the panel."""
+    lines = []
+    rel = err.get("brdf_rel_rms")
+    if rel is not None:
+        grade = "excellent" if rel < 0.03 else "good" if rel < 0.07 else "fair" if rel < 0.12 else "rough"
+        lines.append(f"Match to the exact paint: {grade} (BRDF within {100 * rel:.1f} % RMS)")
+    if "albedo_rms" in err:
+        extra = f", worst {100 * err['albedo_max']:.1f} %" if "albedo_max" in err else ""
+        lines.append(f"Brightness (albedo) off by {100 * err['albedo_rms']:.2f} % RMS{extra}")
+    if "snr_db" in err:
+        lines.append(f"Signal-to-noise of the fit: {err['snr_db']:.1f} dB")
+    return lines
+
 LABELS = {
     "base_color": "Pigment Color",
     "coat_ior": "Coat IOR",
@@ -91,6 +109,29 @@ def preset_label(name: str) -> str:
         label = f"{m.group(1).capitalize()} metallic {m.group(2)} %"
         return label + (f", {m.group(3)} µm" if m.group(3) else "")
     return name.replace("_", " ").capitalize()
+
+
+#: The asset library's catalogues (paths in the Asset Browser), in order.
+ASSET_CATALOGS = ("Lacquer/Thesis series", "Lacquer/Solid", "Lacquer/Metallic", "Lacquer/Pearlescent")
+
+
+def asset_catalog(name: str) -> str:
+    """The asset catalogue of a preset: the thesis series first, then by what the paint holds."""
+    if is_thesis(name):
+        return "Lacquer/Thesis series"
+    m = preset(name)
+    if m.get("pearl_density", 0.0) > 0.0:
+        return "Lacquer/Pearlescent"
+    if m.get("flake_density", 0.0) > 0.0 or m.get("base_metallic", 0.0) > 0.0:
+        return "Lacquer/Metallic"
+    return "Lacquer/Solid"
+
+
+def catalog_uuid(path: str) -> str:
+    """A fixed UUID per catalogue path (the same in every build)."""
+    import uuid
+
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, "lacquer-asset-catalog:" + path))
 
 
 def is_thesis(name: str) -> bool:

@@ -121,8 +121,135 @@ def _mesh_arrays(mesh, axis_scale) -> dict:
         "positions": p_obj.reshape(-1, 3),
         "normals": nrm.reshape(-1, 3),
         "uvs": uv.reshape(-1, 2).astype(np.float32),
+        "coords": p.reshape(-1, 3).astype(np.float32),
+        "loops": loops,
         "material_index": mat_index,
     }
+
+
+# --- normal maps and orange peel (rust-core/render/src/perturb.rs) ---------------------------
+
+
+def _linked_from(sock):
+    """The node feeding a socket (through reroutes), or None."""
+    if sock is None or not sock.is_linked:
+        return None
+    node = sock.links[0].from_node
+    while node.bl_idname == "NodeReroute" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node
+
+
+def normal_source(mat, report: Report):
+    """The Normal Map node (tangent space, fed by an Image Texture) connected to the Lacquer
+    node's Normal (or Coat Normal) input: ``(image, uv_map, strength)``, or None with a message
+    for anything LACQUER cannot follow."""
+    from . import nodegroup
+
+    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+    if node is None:
+        return None
+    src = _linked_from(node.inputs.get("Normal"))
+    coat = _linked_from(node.inputs.get("Coat Normal"))
+    if src is None and coat is not None:
+        src = coat  # LACQUER's paint has one shading frame: the coat's map tilts the whole paint
+        report.warn(f"material \"{mat.name}\": Coat Normal tilts the whole paint in LACQUER (one shading frame)")
+    elif src is not None and coat is not None and coat != src:
+        report.warn(f"material \"{mat.name}\": Coat Normal differs from Normal: LACQUER uses Normal for both")
+    if src is None:
+        return None
+    if src.bl_idname != "ShaderNodeNormalMap" or src.space != "TANGENT":
+        report.warn(f"material \"{mat.name}\": the Normal input comes from {src.bl_idname}"
+                    f"{' (' + src.space.lower() + ' space)' if src.bl_idname == 'ShaderNodeNormalMap' else ''}; "
+                    f"LACQUER follows a tangent-space Normal Map node fed by an Image Texture (ignored)")
+        return None
+    tex = _linked_from(src.inputs["Color"])
+    if tex is None or tex.bl_idname != "ShaderNodeTexImage" or tex.image is None:
+        report.warn(f"material \"{mat.name}\": the Normal Map's Color is not an Image Texture with an image (ignored)")
+        return None
+    if tex.inputs["Vector"].is_linked:
+        report.warn(f"material \"{mat.name}\": the normal map's texture coordinates are connected; LACQUER reads "
+                    f"the UV map directly")
+    if src.inputs["Strength"].is_linked:
+        report.warn(f"material \"{mat.name}\": Normal Map Strength is connected; LACQUER uses its value")
+    return tex.image, src.uv_map, float(src.inputs["Strength"].default_value)
+
+
+def _image_rgb(image) -> tuple[int, int, np.ndarray]:
+    """An image's pixels as (width, height, linear RGB float32 rows bottom first)."""
+    w, h = image.size
+    if w == 0 or h == 0:
+        raise ValueError(f"image \"{image.name}\" has no pixels")
+    px = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(h * w, image.channels)
+    rgb = np.zeros((h * w, 3), np.float32)
+    rgb[:, :min(3, image.channels)] = px[:, :3]
+    if image.colorspace_settings.name.lower() in ("srgb", "srgb - texture") and not image.is_float:
+        rgb = _srgb_to_linear(rgb).astype(np.float32)  # as Cycles decodes a colour image
+    return w, h, rgb
+
+
+def _tangent_arrays(mesh, uv_map: str, loops):
+    """Per-corner uv, tangent and bitangent (object space, MikkTSpace as Cycles) for ``loops``."""
+    layers = mesh.uv_layers
+    name = uv_map or (next((u.name for u in layers if u.active_render), None) if len(layers) else None)
+    if not name or name not in layers:
+        raise ValueError(f"no UV map \"{uv_map}\"" if uv_map else "no UV map")
+    mesh.calc_tangents(uvmap=name)
+    nl = len(mesh.loops)
+    uv = np.empty(nl * 2, np.float32)
+    layers[name].data.foreach_get("uv", uv)
+    t = np.empty(nl * 3, np.float32)
+    bt = np.empty(nl * 3, np.float32)
+    mesh.loops.foreach_get("tangent", t)
+    mesh.loops.foreach_get("bitangent", bt)
+    return uv.reshape(-1, 2)[loops], t.reshape(-1, 3)[loops], bt.reshape(-1, 3)[loops]
+
+
+def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: Report, images: dict) -> dict:
+    """Per material index: the normal map and orange peel of a Lacquer material's mesh part, as
+    the scene format's per-corner arrays (before selecting the part's corners)."""
+    out = {}
+    for idx, mat in enumerate(materials):
+        settings = getattr(mat, "lacquer", None) if mat is not None else None
+        if settings is None or not settings.enabled:
+            continue
+        extra = {}
+        src = normal_source(mat, report)
+        if src is not None:
+            image, uv_map, strength = src
+            try:
+                uv, t, bt = _tangent_arrays(mesh, uv_map, arrays["loops"])
+                if image.name not in images:
+                    images[image.name] = _image_rgb(image)
+                w, h, rgb = images[image.name]
+                extra["normal_map"] = {"width": w, "height": h, "pixels": rgb, "strength": strength,
+                                       "uvs": uv, "tangents": t, "bitangents": bt}
+            except (RuntimeError, ValueError) as e:
+                report.warn(f"material \"{mat.name}\": normal map not exported ({e})")
+        if settings.orange_peel_um > 0.0:
+            extra["orange_peel"] = {"amplitude_um": float(settings.orange_peel_um),
+                                    "wavelength_mm": float(settings.orange_peel_wavelength_mm),
+                                    "metres_per_unit": unit_m, "coords": arrays["coords"]}
+        if extra:
+            out[idx] = extra
+    return out
+
+
+def _select_perturb(extra: dict, corner) -> dict:
+    """A part's perturbation JSON: per-corner arrays cut to ``corner`` and base64-packed."""
+    out = {}
+    if "normal_map" in extra:
+        m = extra["normal_map"]
+        out["normal_map"] = {"width": m["width"], "height": m["height"], "pixels": _b64(m["pixels"], np.float32),
+                             "strength": m["strength"], "uvs": _b64(m["uvs"][corner], np.float32),
+                             "tangents": _b64(m["tangents"][corner], np.float32),
+                             "bitangents": _b64(m["bitangents"][corner], np.float32)}
+    if "orange_peel" in extra:
+        p = extra["orange_peel"]
+        out["orange_peel"] = dict(p, coords=_b64(p["coords"][corner], np.float32))
+    return out
 
 
 # --- materials -------------------------------------------------------------------------------
@@ -438,6 +565,7 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
     objects: list = []
     lights: list = []
     mesh_cache: dict = {}
+    images: dict = {}  # normal-map images read once per render
     unit_m = float(scene.unit_settings.scale_length)  # metres per Blender unit
     if not unit_m > 0.0:
         raise ValueError(f"the scene's Unit Scale is {unit_m}: it must be positive")
@@ -465,16 +593,19 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
         entry = mesh_cache.get(key)
         if entry is None:
             mesh = None
+            slots = [s.material for s in ob.material_slots]
+            perturb = {}
             try:
                 mesh = ob.to_mesh() if ob.type != "MESH" else ob.data
                 arrays = _mesh_arrays(mesh, axis_scale) if mesh is not None else {}
+                if arrays:
+                    perturb = perturb_arrays(mesh, arrays, slots, unit_m, report, images)
             except RuntimeError as e:  # e.g. hair curves, which have no mesh
                 report.warn(f"object \"{ob.name}\": no triangles to render ({e})")
                 arrays = {}
             finally:
                 if ob.type != "MESH" and mesh is not None:
                     ob.to_mesh_clear()
-            slots = [s.material for s in ob.material_slots]
             parts = []
             if arrays:
                 mi = arrays["material_index"]
@@ -487,6 +618,7 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
                         "triangles": _b64(np.arange(len(corner), dtype=np.uint32).reshape(-1, 3), np.uint32),
                         "normals": _b64(arrays["normals"][corner], np.float32),
                         "uvs": _b64(arrays["uvs"][corner], np.float32),
+                        **_select_perturb(perturb.get(int(idx), {}), corner),
                     }
                     mat = slots[idx] if 0 <= idx < len(slots) else None
                     parts.append((name, mat))
@@ -495,7 +627,10 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
         for name, mat in entry:
             desc = material_desc(mat, report)
             if desc.get("model") == "coated_paint":
-                desc = dict(desc, surface_scale_mm=1000.0)  # uv in metres (see _mesh_arrays)
+                # uv in metres (see _mesh_arrays); Flake Scale k makes flakes k× larger: a metre of
+                # surface is then 1/k metre of the paint's sparkle pattern.
+                k = float(mat.lacquer.flake_scale) if mat is not None else 1.0
+                desc = dict(desc, surface_scale_mm=1000.0 / k)
             objects.append({"type": "mesh", "mesh": name, "material": desc,
                             "transform": {"matrix": [_vec(row) for row in world]}})
     lights.extend(world_desc(scene.world, report, temp_files))

@@ -48,7 +48,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 4
+NODE_GROUP_VERSION = 5
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -76,6 +76,35 @@ INPUTS = (
     ("Coat Tint", "NodeSocketColor", (1.0, 1.0, 1.0), None, None, "Principled Coat Tint"),
     ("Sparkle", "NodeSocketFloat", 1.0, 0.0, 1.0, "1 = individual flakes at their true size, 0 = the mean lobe"),
     ("Pearl Size", "NodeSocketFloat", 15.0, 0.1, 10000.0, "Pearl flake diameter in µm"),
+    # Artist controls (version 5), not fitted: set from the material's Lacquer settings or linked.
+    ("Normal", "NodeSocketVector", (0.0, 0.0, 0.0), None, None,
+     "Shading normal of the whole paint (Normal Map or Bump output); unconnected: the surface's"),
+    ("Coat Normal", "NodeSocketVector", (0.0, 0.0, 0.0), None, None,
+     "Normal of the clearcoat's surface; unconnected: Normal"),
+    ("Orange Peel", "NodeSocketFloat", 0.0, 0.0, 1000.0,
+     "RMS height of the clearcoat's waviness in µm (0 = a perfectly flat coat)"),
+    ("Orange Peel Wavelength", "NodeSocketFloat", 3.0, 0.01, 1000.0, "Wavelength of the orange peel in mm"),
+    ("Flake Scale", "NodeSocketFloat", 1.0, 0.01, 100.0,
+     "Multiplier on flake and pearl size (1 = the paint's physical size)"),
+    ("Pixel Angle", "NodeSocketFloat", 0.0, 0.0, 1.0,
+     "Radians per pixel of the render camera (set by the extension; 0 = no level of detail)"),
+    ("Sparkle Samples", "NodeSocketFloat", 64.0, 1.0, 1e6,
+     "Samples per pixel of the render (set by the extension): a pixel footprint holding more flake "
+     "cells than this fades them into the mean lobe"),
+)
+
+#: Orange-peel waves: (unit direction in the object's metric coordinates, phase). The render
+#: crate's table (rust-core/render/src/perturb.rs, ``PEEL_WAVES``), which LACQUER evaluates; the
+#: test ``test_orange_peel_tilts_the_coat_in_both_engines`` checks the tilt LACQUER renders.
+PEEL_WAVES = (
+    ((0.347985273, 0.000000000, 0.937500000), 0.0),
+    ((-0.429857439, 0.393784626, 0.812500000), 1.3),
+    ((0.063487195, -0.723403847, 0.687500000), 2.6),
+    ((0.503055598, 0.656146946, 0.562500000), 3.9),
+    ((-0.885472495, -0.156627617, 0.437500000), 0.7),
+    ((0.801498139, -0.509847509, 0.312500000), 2.0),
+    ((-0.255000119, 0.948587734, 0.187500000), 3.3),
+    ((-0.460005935, -0.885713436, 0.062500000), 4.6),
 )
 
 
@@ -139,6 +168,9 @@ def _new_interface(group):
         s.description = desc
         if stype == "NodeSocketColor":
             s.default_value = (*default, 1.0)
+        elif stype == "NodeSocketVector":
+            s.default_value = default
+            s.hide_value = True  # a normal is connected, not typed
         else:
             s.default_value = default
             s.min_value, s.max_value = lo, hi
@@ -152,7 +184,14 @@ def _build(group):
     I = gi.outputs  # noqa: E741  (group inputs by name)
 
     geo = b.node("ShaderNodeNewGeometry", -1800, 600)
-    N = geo.outputs["Normal"]
+
+    def linked_or(vec, fallback, x, y):
+        """``normalize(vec)`` where a normal is connected (non-zero), else ``fallback``."""
+        use = b.math("GREATER_THAN", b.vmath("LENGTH", vec, x=x, y=y), 1e-6, x=x + 100, y=y)
+        return b.vmath("NORMALIZE", b.mix("VECTOR", use, fallback, vec, x=x + 200, y=y), x=x + 300, y=y)
+
+    # The paint's normal: the Normal input when connected (normal map, bump), else the surface's.
+    N = linked_or(I["Normal"], geo.outputs["Normal"], -2200, 600)
     incoming = geo.outputs["Incoming"]
     texco = b.node("ShaderNodeTexCoord", -1800, 900)
     # Object coordinates in metres on the object, so flakes stick to it: object coordinates ×
@@ -190,11 +229,33 @@ def _build(group):
     helper = b.mix("VECTOR", polar, (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), x=-1150, y=700)
     T = b.vmath("NORMALIZE", b.vmath("CROSS_PRODUCT", N, helper, x=-1000, y=700), x=-850, y=700)
     Bt = b.vmath("CROSS_PRODUCT", N, T, x=-700, y=700)
-    sparkle = I["Sparkle"]
+    # Level of detail: the pixel footprint's side in metres, view distance × Pixel Angle / √(I·N)
+    # (the footprint stretches as 1/cos along the view on a tilted surface; ≥ 0.05 clamps the
+    # grazing limit), as Cycles has no ray differentials in shader nodes.
+    cam = b.node("ShaderNodeCameraData", -2200, 1600)
+    view_m = b.math("MULTIPLY", cam.outputs["View Distance"], unit.outputs["Fac"], x=-2000, y=1600)
+    cos_v = b.math("MAXIMUM", b.vmath("DOT_PRODUCT", geo.outputs["Incoming"], N, x=-2000, y=1650), 0.05,
+                   x=-1900, y=1650)
+    footprint = b.math("DIVIDE", b.math("MULTIPLY", view_m, I["Pixel Angle"], x=-1800, y=1600),
+                       b.math("SQRT", cos_v, x=-1800, y=1650), x=-1700, y=1600)
 
     def layer(size, coverage, spread, offset, y0):
         """Voronoi flake cells → (weight, shading normal, roughness) of one flake population."""
-        cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, size, x=-1400, y=y0 + 150)
+        scaled = b.math("MULTIPLY", size, I["Flake Scale"], x=-1500, y=y0 + 150)
+        # Cells per footprint n = (footprint / diameter)²; the cells keep the weight
+        # w = min(1, √(S / n)) (S = Sparkle Samples) and the mean lobe takes the rest. A pixel's S
+        # samples see S random cells: their mean varies as σ²/S where the footprint's true mean
+        # varies as σ²/n; with w² σ²/S = σ²/n the pixel keeps the physical glint variance of n
+        # cells (LACQUER's, whose sparkle counts the flakes in each footprint) and converges to
+        # the mean lobe as the footprint grows, instead of showing sampling noise.
+        n_cells = b.math("POWER", b.math("DIVIDE", footprint, b.math("MULTIPLY", scaled, 1e-6, x=-1600, y=y0 + 250),
+                                         x=-1500, y=y0 + 250), 2.0, x=-1400, y=y0 + 250)
+        lod = b.math("MINIMUM", b.math("SQRT", b.math("DIVIDE", I["Sparkle Samples"],
+                                                      b.math("MAXIMUM", n_cells, 1e-12, x=-1300, y=y0 + 250),
+                                                      x=-1200, y=y0 + 250), x=-1100, y=y0 + 250), 1.0,
+                     x=-1000, y=y0 + 250)
+        sparkle = b.math("MULTIPLY", I["Sparkle"], lod, x=-900, y=y0 + 250)
+        cell_scale = b.math("DIVIDE", CELL_SCALE_FACTOR * 1e6, scaled, x=-1400, y=y0 + 150)
         coords = b.vmath("ADD", P, offset, x=-1400, y=y0 + 100) if offset else P
         vor = b.node("ShaderNodeTexVoronoi", -1250, y0, voronoi_dimensions="3D", feature="F1")
         b.feed(vor.inputs["Vector"], coords)
@@ -253,12 +314,39 @@ def _build(group):
     pearl_cov = b.math("MINIMUM", b.math("DIVIDE", I["Pearl Coverage"], free, x=-1400, y=-350), 1.0, x=-1300, y=-350)
     pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], pearl_cov, I["Pearl Spread"], (37.11, 53.71, 19.31), -500)
 
+    # The coat's normal: Coat Normal when connected, else Normal; tilted by orange peel, the
+    # height field h(c) = A √(2/K) Σ_k sin(2π d_k·c/λ + φ_k) over the metric coordinates c = P
+    # (metres on the object): ∂h/∂c = A √(2/K) (2π/λ) Σ_k cos(…) d_k, taken to world space as
+    # R ∂h/∂c = M S⁻¹ ∂h/∂c (M the object's matrix, S its per-axis scale; c = S·p·unit), and
+    # n' = normalize(n − (G − (G·n) n)) with the world gradient G (metres per metre).
+    coat_n = linked_or(I["Coat Normal"], N, -2200, 400)
+    k = b.math("DIVIDE", 2.0 * math.pi * 1e3, I["Orange Peel Wavelength"], x=-1400, y=2000)  # 1/m
+    ak = b.math("MULTIPLY", b.math("MULTIPLY", I["Orange Peel"], 1e-6 * math.sqrt(2.0 / len(PEEL_WAVES)),
+                                   x=-1400, y=2050), k, x=-1300, y=2050)
+    grad = None
+    for j, (d, phi) in enumerate(PEEL_WAVES):
+        y = 2100 + 60 * j
+        arg = b.math("ADD", b.math("MULTIPLY", b.vmath("DOT_PRODUCT", P, d, x=-1200, y=y), k, x=-1100, y=y), phi,
+                     x=-1000, y=y)
+        term = b.vmath("SCALE", d, scale=b.math("MULTIPLY", b.math("COSINE", arg, x=-900, y=y), ak, x=-800, y=y),
+                       x=-700, y=y)
+        grad = term if grad is None else b.vmath("ADD", grad, term, x=-600, y=y)
+    g_obj = b.vmath("DIVIDE", grad, world_scale.outputs["Vector"], x=-500, y=2100)
+    gt = b.node("ShaderNodeVectorTransform", -400, 2100, vector_type="VECTOR", convert_from="OBJECT",
+                convert_to="WORLD")
+    b.feed(gt.inputs["Vector"], g_obj)
+    G = gt.outputs["Vector"]
+    tangential = b.vmath("SUBTRACT", G, b.vmath("SCALE", coat_n, scale=b.vmath("DOT_PRODUCT", G, coat_n, x=-300,
+                                                                                    y=2000), x=-200, y=2000),
+                         x=-100, y=2000)
+    coat_n = b.vmath("NORMALIZE", b.vmath("SUBTRACT", coat_n, tangential, x=0, y=2000), x=100, y=2000)
+
     def principled(x, y, label):
         p = b.node("ShaderNodeBsdfPrincipled", x, y)
         p.label = label
         for name in ("Coat Weight", "Coat Roughness", "Coat IOR", "Coat Tint"):
             b.feed(p.inputs[name], I[name])
-        b.feed(p.inputs["Coat Normal"], N)
+        b.feed(p.inputs["Coat Normal"], coat_n)
         return p
 
     base = principled(500, 900, "Basecoat (pigment)")
@@ -397,6 +485,61 @@ def group_node(mat, create=True):
     return node
 
 
+def artist_inputs(settings) -> dict:
+    """The node group inputs set from the material's artist controls (not fitted)."""
+    return {"Orange Peel": float(settings.orange_peel_um),
+            "Orange Peel Wavelength": float(settings.orange_peel_wavelength_mm),
+            "Flake Scale": float(settings.flake_scale)}
+
+
+def lod_inputs(scene) -> dict:
+    """The level-of-detail inputs for a scene's render: the camera's radians per pixel (0 without
+    a perspective camera) and Cycles' samples per pixel."""
+    angle = 0.0
+    cam = scene.camera
+    r = scene.render
+    width = r.resolution_x * r.resolution_percentage / 100.0
+    height = r.resolution_y * r.resolution_percentage / 100.0
+    if cam is not None and cam.type == "CAMERA" and cam.data.type == "PERSP" and width > 0 and height > 0:
+        fit = cam.data.sensor_fit
+        horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
+        fov = cam.data.angle_x if horizontal else cam.data.angle_y
+        angle = 2.0 * math.tan(0.5 * fov) / (width if horizontal else height)
+    # Cycles' samples whatever the current engine (the cells are sampled per path in Cycles;
+    # the value must not change when another engine renders the same file).
+    samples = scene.cycles.samples if hasattr(scene, "cycles") else 64
+    return {"Pixel Angle": float(angle), "Sparkle Samples": float(max(1, samples))}
+
+
+def write_lod_inputs(scene, materials=None) -> None:
+    """Writes :func:`lod_inputs` to the Lacquer nodes of ``materials`` (default: every local one)."""
+    values = lod_inputs(scene)
+    for mat in materials if materials is not None else bpy.data.materials:
+        if mat.library is not None or not getattr(mat, "node_tree", None) or not mat.lacquer.enabled:
+            continue
+        values["Pixel Angle"] = lod_inputs(scene)["Pixel Angle"] if mat.lacquer.sparkle_lod else 0.0
+        node = mat.node_tree.nodes.get(NODE_NAME)
+        if node is None or node.bl_idname != "ShaderNodeGroup":
+            continue
+        for name, value in values.items():
+            sock = node.inputs.get(name)
+            if sock is not None and not sock.is_linked and sock.default_value != value:
+                sock.default_value = value
+
+
+def write_artist_inputs(mat) -> None:
+    """Writes the artist controls to the material's group node (no refit: nothing is fitted)."""
+    if bpy.context.scene is not None:
+        write_lod_inputs(bpy.context.scene, [mat])
+    node = mat.node_tree.nodes.get(NODE_NAME) if mat.node_tree else None
+    if node is None or node.bl_idname != "ShaderNodeGroup":
+        return
+    for name, value in artist_inputs(mat.lacquer).items():
+        sock = node.inputs.get(name)
+        if sock is not None and not sock.is_linked:
+            sock.default_value = value
+
+
 class PaintRejected(ValueError):
     """A paint edit the core refused; the previous valid paint was kept."""
 
@@ -434,6 +577,7 @@ def apply_fit(mat, material: dict, result, error):
     inputs.setdefault("Flake Size", material["flake_size_um"])
     inputs.setdefault("Sparkle", 1.0 if material.get("sparkle", True) else 0.0)
     inputs["Pearl Size"] = material["pearl_size_um"]
+    inputs.update(artist_inputs(settings))
     node = group_node(mat)
     for name, value in inputs.items():
         sock = node.inputs.get(name)
@@ -448,6 +592,8 @@ def apply_fit(mat, material: dict, result, error):
     settings.fit_error = json.dumps(fit_error, sort_keys=True)
     settings.fit_material = json.dumps(material, sort_keys=True)
     settings.fit_message = source
+    if bpy.context.scene is not None:
+        write_lod_inputs(bpy.context.scene, [mat])
     pig = inputs.get("Pigment Color", material["base_color"])
     mat.diffuse_color = (*[float(v) for v in pig[:3]], 1.0)  # solid-mode viewport colour
     return inputs, fit_error

@@ -5,7 +5,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
-from . import catalog, nodegroup, props
+from . import assets, catalog, nodegroup, props
 
 
 def _preset_items(self, context):
@@ -186,10 +186,14 @@ class LACQUER_MT_presets(bpy.types.Menu):
         other = [p for p in catalog.presets() if not catalog.is_thesis(p[0])]
         layout.label(text="Thesis series (flake density, flake size)")
         for name, label, _, _ in thesis:
-            layout.operator(op, text=label).preset = name
-        layout.separator()
-        for name, label, _, _ in other:
-            layout.operator(op, text=label).preset = name
+            layout.operator(op, text=label, icon_value=assets.icon(name)).preset = name
+        for title in catalog.ASSET_CATALOGS[1:]:
+            group = [p for p in other if catalog.asset_catalog(p[0]) == title]
+            if group:
+                layout.separator()
+                layout.label(text=title.split("/")[-1])
+            for name, label, _, _ in group:
+                layout.operator(op, text=label, icon_value=assets.icon(name)).preset = name
 
 
 def _menu_assign(self, context):

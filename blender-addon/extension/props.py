@@ -9,6 +9,7 @@ JSON handed to the renderer use the core's names and units exactly.
 from __future__ import annotations
 
 import json
+import math
 import time
 
 import bpy
@@ -171,6 +172,18 @@ def _rendering() -> bool:
     return bool(getattr(bpy.app, "is_job_running", None) and bpy.app.is_job_running("RENDER"))
 
 
+@bpy.app.handlers.persistent
+def on_render_pre(scene, *_args):
+    """render_pre: the node groups' level-of-detail inputs (camera pixel angle, samples) for
+    this render's camera and resolution."""
+    from . import nodegroup
+
+    try:
+        nodegroup.write_lod_inputs(scene)
+    except Exception as e:  # noqa: BLE001  (a handler must not stop the render)
+        print(f"Lacquer: level of detail not updated: {e}")
+
+
 #: What the last load_post upgrade did (the panel and the tests read it).
 LAST_UPGRADE: dict = {}
 
@@ -189,12 +202,33 @@ def on_load_post(*_args):
         print(f"Lacquer: upgrading the node groups failed: {e}")
 
 
+def _on_artist_change(self, context):
+    """An artist control changed: written to the node group at once (nothing to fit)."""
+    from . import nodegroup
+
+    mat = self.id_data
+    if isinstance(mat, bpy.types.Material) and self.enabled:
+        nodegroup.write_artist_inputs(mat)
+
+
+def is_angle(p: dict) -> bool:
+    """A paint parameter in degrees (shown with Blender's angle unit, stored in radians)."""
+    return p["kind"] == "scalar" and (p["name"].endswith("_deg") or p.get("unit") in ("°", "deg"))
+
+
 def _prop_for(p: dict):
     name, kind, doc = p["name"], p["kind"], p.get("doc", "")
     label = catalog.LABELS.get(name, name.replace("_", " ").title())
     unit = p.get("unit") or ""
     if unit and f"({unit})" not in label:
         doc = f"{doc} [{unit}]"
+    if kind == "scalar" and is_angle(p):
+        # Degrees in the core; Blender's ANGLE subtype stores radians and shows them in the
+        # scene's rotation unit (degrees by default). material_json converts back.
+        label = label.replace(" (°)", "")
+        return FloatProperty(name=label, description=doc, default=math.radians(float(p["default"])),
+                             min=math.radians(float(p["min"])), max=math.radians(float(p["max"])),
+                             subtype="ANGLE", unit="ROTATION", precision=1, update=_on_param_change)
     if kind == "scalar":
         lo, hi = float(p["min"]), float(p["max"])
         return FloatProperty(name=label, description=doc, default=float(p["default"]), min=lo, max=hi,
@@ -234,6 +268,8 @@ def material_json(settings) -> dict:
             v = p["default"]
         elif p["kind"] == "color":
             v = [float(x) for x in v]
+        elif is_angle(p):
+            v = round(math.degrees(float(v)), 4)  # float32 storage: 20° reads 19.9999995
         elif p["kind"] == "scalar":
             v = float(v)
         elif p["kind"] == "bool":
@@ -252,6 +288,8 @@ def load_material_json(settings, material: dict) -> None:
                 v = material[p["name"]]
                 if p["kind"] == "color" and not isinstance(v, list):
                     v = [v, v, v]
+                elif is_angle(p):
+                    v = math.radians(float(v))
                 setattr(settings, p["name"], v)
     finally:
         _loading = False
@@ -270,6 +308,24 @@ def make_paint_class():
         fit_error=StringProperty(name="Fit error", description="JSON of the fit error", default=""),
         fit_material=StringProperty(name="Fitted material", description="material JSON the fit is for", default=""),
         fit_message=StringProperty(name="Fit message", default=""),
+        # Artist controls: not paint parameters of the core; the node group and LACQUER's export
+        # read them (orange peel: rust-core/render/src/perturb.rs; flake scale: the sparkle's
+        # surface scale).
+        orange_peel_um=FloatProperty(
+            name="Orange Peel", default=0.0, min=0.0, max=1000.0, soft_max=20.0, precision=2,
+            description="RMS height of the clearcoat's waviness in µm (0 = a perfectly flat coat)",
+            update=_on_artist_change),
+        orange_peel_wavelength_mm=FloatProperty(
+            name="Peel Wavelength", default=3.0, min=0.01, max=1000.0, soft_min=0.1, soft_max=20.0,
+            precision=2, description="Wavelength of the orange peel in mm", update=_on_artist_change),
+        sparkle_lod=BoolProperty(
+            name="Sparkle Level of Detail", default=True, update=_on_artist_change,
+            description="In Cycles, fade flake cells into the mean lobe where a pixel covers more cells than "
+                        "it has samples (as LACQUER's footprint sparkle converges); off: cells at any distance"),
+        flake_scale=FloatProperty(
+            name="Flake Scale", default=1.0, min=0.01, max=100.0, soft_max=10.0, precision=2,
+            description="Multiplier on the size of flakes and pearls (1 = the paint's physical size; an "
+                        "artistic exaggeration, in both Cycles and LACQUER)", update=_on_artist_change),
     )
     cls = type("LacquerPaintSettings", (bpy.types.PropertyGroup,), {"__annotations__": ann})
     return cls
@@ -298,11 +354,13 @@ def register():
     bpy.types.Scene.lacquer = bpy.props.PointerProperty(type=LacquerRenderSettings)
     bpy.app.handlers.frame_change_post.append(on_frame_change)
     bpy.app.handlers.load_post.append(on_load_post)
+    bpy.app.handlers.render_pre.append(on_render_pre)
 
 
 def unregister():
     for handlers, fn in ((bpy.app.handlers.frame_change_post, on_frame_change),
-                         (bpy.app.handlers.load_post, on_load_post)):
+                         (bpy.app.handlers.load_post, on_load_post),
+                       (bpy.app.handlers.render_pre, on_render_pre)):
         while fn in handlers:
             handlers.remove(fn)
     for timer in (_refit_pending, apply_finished_refits):

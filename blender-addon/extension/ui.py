@@ -47,13 +47,18 @@ class MATERIAL_PT_lacquer(bpy.types.Panel):
             for name in rest:
                 box.prop(s, name)
         box = layout.box()
+        box.label(text="Surface (both engines)")
+        col = box.column(align=True)
+        for name in catalog.ARTIST:
+            col.prop(s, name)
+        box.label(text="Normal maps, bump: connect them to the node's Normal / Coat Normal", icon="INFO")
+        box = layout.box()
         box.label(text="Node group fit (Cycles / EEVEE)")
         if s.fit_error:
             err = json.loads(s.fit_error)
             col = box.column(align=True)
-            for key in ("albedo_rms", "albedo_max", "brdf_rel_rms", "brdf_cos_rms", "snr_db"):
-                if key in err:
-                    col.label(text=f"{key}: {err[key]:.4g}")
+            for line in catalog.fit_quality_lines(err):
+                col.label(text=line)
         elif s.fit_message:
             box.label(text=s.fit_message, icon="INFO")
         if not fit.available():

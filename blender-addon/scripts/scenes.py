@@ -7,7 +7,7 @@ settings, assigns presets with the extension's operator, renders, and writes EXR
 report (timings, fit, engine messages).
 
     BLENDER_USER_RESOURCES=$(mktemp -d) .venv-blender/bin/python blender-addon/scripts/scenes.py \
-        --zip dist/lacquer-0.1.0.zip --out out/ --size 128 --spp 16 --scenes compare,density
+        --zip dist/lacquer-0.1.0-linux_x64.zip --out out/ --size 128 --spp 16 --scenes compare,density
 
 Scenes:
   compare   gold_flake_8 on a 10 cm sphere, uniform world and a soft area light, film transparent
@@ -197,6 +197,24 @@ def scene_density(size, spp, preset):
     add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
     mat = assign(plate, preset)
     return scene, {preset: mat}
+
+
+#: Sparkle level of detail (scene_lod): camera distances in metres (lens 900 mm, 36 mm sensor:
+#: 128 px see 0.04 × distance; pixel footprint 31 µm at 0.1 m, 1.25 mm at 4 m, for 25 µm flakes).
+LOD_DISTANCES = (0.1, 4.0)
+
+
+def scene_lod(size, spp, distance, lod):
+    scene = fresh_scene(size, spp)
+    set_world(scene, (0.02, 0.02, 0.02))
+    bpy.ops.mesh.primitive_plane_add(size=0.5, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    add_camera(scene, (0.0, 0.0, distance), (0.0, 0.0, 0.0), lens=900.0)
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, "gold_flake_8")
+    mat.lacquer.sparkle_lod = lod
+    return scene, {"gold_flake_8": mat}
 
 
 def scene_readme(size, spp):
@@ -673,6 +691,174 @@ def engine_smoke(out: str, size: int) -> dict:
     return rep
 
 
+def _normal_map_image(n=64, waves=4, tilt=0.4):
+    """A tangent-space normal map (Non-Color float image): stripes along u, the normal tilted
+    toward the tangent by ``tilt · sin(2π waves u)`` radians."""
+    import numpy as np
+
+    u = (np.arange(n) + 0.5) / n
+    theta = tilt * np.sin(2 * np.pi * waves * u)
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[..., 0] = 0.5 * (np.sin(theta)[None, :] + 1.0)
+    rgba[..., 1] = 0.5
+    rgba[..., 2] = 0.5 * (np.cos(theta)[None, :] + 1.0)
+    img = bpy.data.images.new("lacquer test normal map", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    return img
+
+
+def artist_smoke(out: str, size: int) -> dict:
+    """Artist controls (issue 15 item 2): a normal map on the node's Normal input renders in
+    both engines (their shading normals compared through the Normal / Denoising Normal passes),
+    orange peel tilts the coat (LACQUER's normal pass against the height field's predicted RMS
+    slope; Cycles' image changes), Flake Scale reaches both engines, angles are shown in degrees
+    and the fit error reads as text."""
+    import numpy as np
+
+    export = _addon_module("export")
+    catalog = _addon_module("catalog")
+    rep: dict = {}
+    scene = fresh_scene(size, 16)
+    set_world(scene, (0.3, 0.3, 0.3))
+    bpy.ops.mesh.primitive_plane_add(size=0.04, location=(0.0, 0.0, 0.0))
+    plate = bpy.context.object
+    add_camera(scene, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0), lens=900.0)  # 2 cm across the frame
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    mat = assign(plate, "gold_flake_8")
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    node.inputs["Sparkle"].default_value = 0.0  # mean lobe: flake normals = the paint's normal
+    scene.lacquer.sparkle = False
+    scene.view_layers[0].use_pass_normal = True
+
+    def passes(tag, cycles=True):
+        scene.render.engine = "LACQUER"  # the Render Layers node lists the engine's passes
+        compositor(scene, "Denoising Normal", denoise=False)
+        render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer_normal.exr"))
+        disable_compositor(scene)
+        render(scene, "LACQUER", os.path.join(out, f"artist_{tag}_lacquer.exr"))
+        if cycles:
+            scene.render.engine = "CYCLES"
+            compositor(scene, "Normal", denoise=False)
+            render(scene, "CYCLES", os.path.join(out, f"artist_{tag}_cycles_normal.exr"))
+            disable_compositor(scene)
+            render(scene, "CYCLES", os.path.join(out, f"artist_{tag}_cycles.exr"))
+
+    t = time.perf_counter()
+    passes("plain")
+    # Image Texture (Non-Color) → Normal Map (tangent space, the plane's UV map) → Normal.
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = _normal_map_image()
+    nm = tree.nodes.new("ShaderNodeNormalMap")
+    nm.space = "TANGENT"
+    nm.uv_map = plate.data.uv_layers[0].name
+    tree.links.new(tex.outputs["Color"], nm.inputs["Color"])
+    tree.links.new(nm.outputs["Normal"], node.inputs["Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["normal_map_exported"] = any("normal_map" in m for m in job["scene"]["meshes"].values())
+    rep["normal_map_messages"] = report.lines()
+    passes("normalmap")
+    tree.links.remove(node.inputs["Normal"].links[0])
+    # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
+    mat.lacquer.orange_peel_um = 50.0
+    mat.lacquer.orange_peel_wavelength_mm = 8.0
+    rep["peel_node_inputs"] = [node.inputs["Orange Peel"].default_value,
+                               node.inputs["Orange Peel Wavelength"].default_value]
+    passes("peel")
+    mat.lacquer.orange_peel_um = 0.0
+    # The orange-peel waves' predicted RMS slope on this plane (the xy plane of the object):
+    # A k √(Σ |d_xy|² / K) (each wave's gradient a k cos(·) d, a = A √(2/K)).
+    ng = _addon_module("nodegroup")
+    dxy2 = sum(d[0] ** 2 + d[1] ** 2 for d, _ in ng.PEEL_WAVES) / len(ng.PEEL_WAVES)
+    rep["peel_predicted_rms_slope"] = 50e-6 * 2 * math.pi / 8e-3 * math.sqrt(dxy2)
+    # Flake Scale: the node group's input and LACQUER's sparkle scale.
+    mat.lacquer.flake_scale = 2.0
+    job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    rep["flake_scale"] = {"node": node.inputs["Flake Scale"].default_value,
+                          "surface_scale_mm": paint[0]["surface_scale_mm"]}
+    mat.lacquer.flake_scale = 1.0
+    # Units and readable text.
+    prop = mat.lacquer.bl_rna.properties["flake_orientation_deg"]
+    rep["angle"] = {"subtype": prop.subtype, "unit": prop.unit,
+                    "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
+                    "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
+    rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["seconds"] = time.perf_counter() - t
+    del np
+    return rep
+
+
+def assets_smoke(out: str, size: int) -> dict:
+    """The bundled asset library (issue 15 item 1): registered in the preferences, one asset per
+    preset in its catalogue with a core-rendered preview, and an appended asset on an object is a
+    working Lacquer paint (parameters, node group, LACQUER render)."""
+    import numpy as np
+
+    assets = _addon_module("assets")
+    catalog = _addon_module("catalog")
+    export = _addon_module("export")
+    props = _addon_module("props")
+    ng = _addon_module("nodegroup")
+    rep: dict = {}
+    lib = assets.find_library()
+    rep["library"] = {"registered": lib is not None, "name": lib.name if lib else None,
+                      "blend": assets.library_blend()}
+    blend = assets.library_blend()
+    with bpy.data.libraries.load(blend, assets_only=True) as (src, _dst):
+        rep["asset_materials"] = sorted(src.materials)
+    rep["preset_labels"] = sorted(label for _, label, _, _ in catalog.presets())
+    cats = open(os.path.join(assets.library_dir(), "blender_assets.cats.txt")).read()
+    rep["catalogs"] = [line.split(":")[1] for line in cats.splitlines() if line and line[0] not in "#V"]
+    # Headless bpy makes no UI icons (icon_id 0); the previews' images load all the same.
+    rep["previews"] = {name: list(assets.preview(name).image_size) if assets.preview(name) else None
+                       for name, _, _, _ in catalog.presets()}
+    rep["icon_ids"] = [assets.icon(name) for name, _, _, _ in catalog.presets()]
+    rep["background"] = bpy.app.background
+    scene = fresh_scene(size, 16)
+    add_light(scene, "SUN", (0.3, -0.5, 1.0), (0.0, 0.0, 0.0), energy=3.0)
+    set_world(scene, (0.2, 0.2, 0.2))
+    ball = sphere(scene, 0.05)
+    add_camera(scene, (0.0, -0.5, 0.12), (0.0, 0.0, 0.0), lens=85.0)
+    per_preset = {}
+    for name in ("gold_flake_8", "pearl_blue", "solid_red"):
+        mat = assets.append_material(name)
+        ball.data.materials.clear()
+        ball.data.materials.append(mat)
+        node = mat.node_tree.nodes.get(ng.NODE_NAME)
+        got = props.material_json(mat.lacquer)
+        want = dict(catalog.preset(name))
+        same = all(abs(got[k] - v) < 1e-4 if isinstance(v, float) else
+                   (np.allclose(got[k], v, atol=1e-4) if isinstance(v, list) else got[k] == v)
+                   for k, v in want.items() if k in got)
+        cat_path = next((p for p in catalog.ASSET_CATALOGS if mat.asset_data is not None and
+                         catalog.catalog_uuid(p) == mat.asset_data.catalog_id), None)
+        job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+        models = [o["material"].get("model") for o in job["scene"]["objects"]]
+        path = os.path.join(out, f"assets_{name}_lacquer.exr")
+        render(scene, "LACQUER", path)
+        img = _stats(path)
+        pv = mat.preview
+        pix = np.empty(pv.image_size[0] * pv.image_size[1] * 4, np.float32)
+        pv.image_pixels_float.foreach_get(pix)
+        per_preset[name] = {
+            "enabled": mat.lacquer.enabled, "preset": mat.lacquer.preset, "params_match": bool(same),
+            "group": node.node_tree.name if node is not None else None,
+            "group_version": node.node_tree.get("lacquer_version") if node is not None else None,
+            "fit_inputs": bool(mat.lacquer.fit_inputs), "coverage": node.inputs["Flake Coverage"].default_value,
+            "expected_coverage": json.loads(mat.lacquer.fit_inputs).get("Flake Coverage"),
+            "catalog": cat_path, "expected_catalog": catalog.asset_catalog(name), "models": models,
+            "lacquer_mean": float(img[..., :3].mean()), "preview_size": list(pv.image_size),
+            "preview_mean": float(pix.reshape(-1, 4)[:, :3].mean()) if pix.size else 0.0}
+    rep["applied"] = per_preset
+    rep["local_groups"] = [g.name for g in bpy.data.node_groups if g.name.startswith(ng.GROUP_NAME)]
+    return rep
+
+
 def editing_smoke(out: str, size: int) -> dict:
     """Editing that does not freeze (issue 15 item 7) and errors that lose nothing (issue 16
     item 7): a refit on the worker thread applied by the timer, keyframed paint parameters
@@ -888,8 +1074,13 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
-            elif name in ("engine", "editing"):
+            elif name in ("engine", "editing", "artist", "assets"):
                 smokes.append(name)  # after the scenes: editing opens and saves files
+            elif name == "lod":
+                for dist in LOD_DISTANCES:
+                    for lod in (True, False):
+                        jobs.append((f"lod_{dist}_{'on' if lod else 'off'}",
+                                     lambda dist=dist, lod=lod: scene_lod(a.size, a.spp, dist, lod)))
             elif name == "flakescale":
                 for u in FLAKESCALE_UNITS:
                     jobs.append((f"flakescale_{u}", lambda u=u: scene_flakescale(a.size, a.spp, u)))
@@ -907,6 +1098,12 @@ def main(argv):
             if a.blend:
                 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(os.path.abspath(a.out), f"{name}.blend"))
             this = [(e, e.lower()) for e in engines]
+            if name.startswith("lod_") and name.endswith("_off"):
+                this = [("CYCLES", "cycles")]  # LACQUER has no switch: rendered once, with "on"
+            if name.startswith("lod_"):
+                node = mats["gold_flake_8"].node_tree.nodes["Lacquer Paint"]
+                report.setdefault("lod", {})[name] = {k: node.inputs[k].default_value
+                                                      for k in ("Pixel Angle", "Sparkle Samples", "Flake Size")}
             if name.startswith("flakescale_"):
                 # The cells' coordinate rendered by Cycles, and LACQUER's export read directly.
                 this = [("CYCLES", "cycles_coord")]
@@ -941,7 +1138,9 @@ def main(argv):
                 print(f"rendered {name} with {engine} in {r['seconds']:.2f} s", flush=True)
         for name in smokes:
             t = time.perf_counter()
-            report[name] = (engine_smoke if name == "engine" else editing_smoke)(os.path.abspath(a.out), a.size)
+            smoke = {"engine": engine_smoke, "editing": editing_smoke, "artist": artist_smoke,
+                     "assets": assets_smoke}[name]
+            report[name] = smoke(os.path.abspath(a.out), a.size)
             report[name]["smoke_seconds"] = time.perf_counter() - t
             print(f"{name} smoke in {report[name]['smoke_seconds']:.2f} s", flush=True)
         if a.png and "readme" in a.scenes.split(","):

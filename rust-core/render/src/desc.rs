@@ -34,6 +34,14 @@
 //! little-endian `f32` (`u32` for triangles) values: the compact form hosts such as Blender
 //! write for large meshes.
 //!
+//! An entry of `meshes` may also perturb its shading normals ([`crate::perturb`]):
+//! `"normal_map": {width, height, pixels, strength, uvs, tangents, bitangents}` (a tangent-space
+//! normal map as Blender's Normal Map node reads it; `pixels` are `width × height` RGB texels,
+//! row 0 at v = 0; uvs, tangents and bitangents one per vertex) and
+//! `"orange_peel": {amplitude_um, wavelength_mm, metres_per_unit, coords}` (the clearcoat's
+//! waviness: a height field of that RMS height and wavelength over the per-vertex metric
+//! coordinates `coords`, in metres).
+//!
 //! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
 //! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
 //! irradiance, angle_deg = angular diameter, 0 = sharp), `sphere` (center, radius, radiance),
@@ -49,6 +57,7 @@ use crate::camera::Camera;
 use crate::env::Environment;
 use crate::geom::{v3, v3a, V3};
 use crate::lights::Light;
+use crate::perturb::{NormalMap, OrangePeel, Perturbation};
 use crate::scene::{Scene, SceneBuilder};
 use crate::shapes::{Mesh, Quad, Sphere};
 use lacquer::{Material, Rgb};
@@ -229,6 +238,111 @@ pub struct MeshData {
     /// Vertex texture coordinates (optional).
     #[serde(default)]
     pub uvs: Option<Packed<f32, 2>>,
+    /// A tangent-space normal map perturbing the shading normal (optional).
+    #[serde(default)]
+    pub normal_map: Option<NormalMapDesc>,
+    /// Orange peel of a clearcoat perturbing the shading normal (optional).
+    #[serde(default)]
+    pub orange_peel: Option<OrangePeelDesc>,
+}
+
+/// A mesh's tangent-space normal map (`meshes.NAME.normal_map`; [`crate::perturb`]): the image
+/// and, per vertex, its texture coordinates, tangent and bitangent (object space, as the
+/// mesh's normals).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NormalMapDesc {
+    /// Image width in texels.
+    pub width: usize,
+    /// Image height in texels.
+    pub height: usize,
+    /// `width × height` RGB texels, row 0 (v = 0) first, non-colour values in [0, 1].
+    pub pixels: Packed<f32, 3>,
+    /// Strength (Blender's Normal Map node; default 1).
+    #[serde(default = "one")]
+    pub strength: f64,
+    /// Texture coordinates per vertex.
+    pub uvs: Packed<f32, 2>,
+    /// Tangent per vertex.
+    pub tangents: Packed<f32, 3>,
+    /// Bitangent per vertex (sign × N × T).
+    pub bitangents: Packed<f32, 3>,
+}
+
+/// A mesh's orange peel (`meshes.NAME.orange_peel`; [`crate::perturb::OrangePeel`]).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OrangePeelDesc {
+    /// RMS height of the coat's waviness in µm (0 = off).
+    pub amplitude_um: f64,
+    /// Wavelength in mm.
+    pub wavelength_mm: f64,
+    /// Metres per world unit.
+    #[serde(default = "one")]
+    pub metres_per_unit: f64,
+    /// Metric coordinates per vertex (metres on the object: object coordinates × the object's
+    /// scale in metres), where the waves are evaluated.
+    pub coords: Packed<f32, 3>,
+}
+
+/// The perturbations of a mesh with `n` vertices from their descriptions, checked.
+pub fn perturbation(
+    n: usize,
+    normal_map: Option<&NormalMapDesc>,
+    orange_peel: Option<&OrangePeelDesc>,
+) -> Result<Option<Box<Perturbation>>, String> {
+    let mut out = Perturbation::default();
+    if let Some(m) = normal_map {
+        if m.width == 0 || m.height == 0 || m.width.checked_mul(m.height) != Some(m.pixels.0.len()) {
+            return Err(format!("normal_map: {} pixels for {}×{} texels", m.pixels.0.len(), m.width, m.height));
+        }
+        if m.uvs.0.len() != n || m.tangents.0.len() != n || m.bitangents.0.len() != n {
+            return Err(format!("normal_map: uvs, tangents and bitangents need one entry per position ({n})"));
+        }
+        let finite = m.pixels.0.iter().flatten().chain(m.uvs.0.iter().flatten()).all(|v| v.is_finite())
+            && m.tangents.0.iter().chain(m.bitangents.0.iter()).flatten().all(|v| v.is_finite());
+        let strength_ok = m.strength.is_finite() && m.strength >= 0.0;
+        if !finite || !strength_ok {
+            return Err("normal_map: values must be finite and the strength >= 0".into());
+        }
+        let vecs = |v: &[[f32; 3]]| v.iter().map(|t| v3(t[0], t[1], t[2])).collect::<Vec<_>>();
+        out.normal_map = Some((
+            NormalMap {
+                width: m.width,
+                height: m.height,
+                texels: m.pixels.0.clone().into(),
+                strength: m.strength as f32,
+            },
+            m.uvs.0.clone(),
+            vecs(&m.tangents.0),
+            vecs(&m.bitangents.0),
+        ));
+    }
+    if let Some(p) = orange_peel {
+        let amplitude_ok = p.amplitude_um.is_finite() && p.amplitude_um >= 0.0;
+        if !amplitude_ok {
+            return Err("orange_peel: amplitude_um must be >= 0".into());
+        }
+        let lengths_ok = p.wavelength_mm.is_finite()
+            && p.wavelength_mm > 0.0
+            && p.metres_per_unit.is_finite()
+            && p.metres_per_unit > 0.0;
+        if !lengths_ok {
+            return Err("orange_peel: wavelength_mm and metres_per_unit must be > 0".into());
+        }
+        if p.coords.0.len() != n || p.coords.0.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(format!("orange_peel: coords need one finite entry per position ({n})"));
+        }
+        if p.amplitude_um > 0.0 {
+            let peel = OrangePeel {
+                amplitude_m: p.amplitude_um * 1e-6,
+                wavelength_m: p.wavelength_mm * 1e-3,
+                metres_per_unit: p.metres_per_unit,
+            };
+            out.orange_peel = Some((peel, p.coords.0.iter().map(|c| c.map(f64::from)).collect()));
+        }
+    }
+    Ok((out.normal_map.is_some() || out.orange_peel.is_some()).then(|| Box::new(out)))
 }
 
 /// A scene object.
@@ -468,6 +582,7 @@ pub fn inline_mesh(
         normals: normals.map_or(Vec::new(), |v| v.iter().map(|p| v3(p[0], p[1], p[2])).collect()),
         uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
         triangles: triangles.to_vec(),
+        perturb: None,
     })
 }
 
@@ -505,9 +620,7 @@ pub fn transform_mesh(mesh: &mut Mesh, t: &TransformDesc) {
     for p in &mut mesh.positions {
         *p = rot(v3(p.x * s.x, p.y * s.y, p.z * s.z)) + tr;
     }
-    for n in &mut mesh.normals {
-        *n = rot(v3(n.x / s.x, n.y / s.y, n.z / s.z)).normalize();
-    }
+    for_each_normal(mesh, |n| rot(v3(n.x / s.x, n.y / s.y, n.z / s.z)).normalize());
     if let Some(m) = &t.matrix {
         apply_matrix(mesh, m);
     }
@@ -546,10 +659,24 @@ pub fn apply_matrix(mesh: &mut Mesh, m: &[[f64; 4]; 4]) {
     };
     let cof = [[c(0, 0), c(0, 1), c(0, 2)], [c(1, 0), c(1, 1), c(1, 2)], [c(2, 0), c(2, 1), c(2, 2)]];
     let sign = det3(m).signum();
-    for n in &mut mesh.normals {
+    for_each_normal(mesh, |n| {
         let q = [n.x as f64, n.y as f64, n.z as f64];
         let r = |i: usize| sign * (cof[i][0] * q[0] + cof[i][1] * q[1] + cof[i][2] * q[2]);
-        *n = v3(r(0) as f32, r(1) as f32, r(2) as f32).normalize();
+        v3(r(0) as f32, r(1) as f32, r(2) as f32).normalize()
+    });
+}
+
+/// Applies a normal transform to the vertex normals and to a normal map's tangents and
+/// bitangents: Cycles combines them in object space and transforms the result as a normal,
+/// which this reproduces for rotations and uniform scales.
+fn for_each_normal(mesh: &mut Mesh, f: impl Fn(V3) -> V3) {
+    for n in &mut mesh.normals {
+        *n = f(*n);
+    }
+    if let Some((_, _, t, b)) = mesh.perturb.as_mut().and_then(|p| p.normal_map.as_mut()) {
+        for v in t.iter_mut().chain(b.iter_mut()) {
+            *v = f(*v);
+        }
     }
 }
 
@@ -592,13 +719,15 @@ impl SceneDesc {
         }
         let mut shared = BTreeMap::new();
         for (k, m) in &self.meshes {
-            let mesh = inline_mesh(
+            let mut mesh = inline_mesh(
                 &m.positions.0,
                 &m.triangles.0,
                 m.normals.as_ref().map(|v| &v.0[..]),
                 m.uvs.as_ref().map(|v| &v.0[..]),
             )
             .map_err(|e| format!("meshes.{k}: {e}"))?;
+            mesh.perturb = perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref())
+                .map_err(|e| format!("meshes.{k}: {e}"))?;
             shared.insert(k.clone(), mesh);
         }
         let mut b = SceneBuilder::new();
@@ -909,6 +1038,57 @@ mod tests {
     /// the light hides the floor (its back is black) and shadows the sun; with `"surface": false`
     /// the camera sees the floor below it, lit by both: `ρ L F + ρ E/π` with the view factor
     /// `F` of the square from the point below its centre (four corner rectangles, Howell C-11).
+    #[test]
+    fn normal_maps_and_orange_peel_perturb_the_shading_normal() {
+        // A square of two triangles facing a sun straight above it (Lambert 0.5, camera above):
+        // radiance = 0.5/π × E × (n'·l). A flat normal map keeps n' = n; a texel (0.75, 0.5, 0.9)
+        // tilts it to normalize(0.5 T + 0.8 N), cos = 0.8/√0.89; a bad array length is an error.
+        let job = |extra: &str| {
+            format!(
+                r#"{{"material": {{"model": "lambert", "albedo": 0.5}}, "width": 5, "height": 5, "spp": 4,
+                "max_depth": 1, "aovs": false,
+                "scene": {{"camera": {{"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov_deg": 5}},
+                  "meshes": {{"sq": {{"positions": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]],
+                    "triangles": [[0, 2, 1], [0, 3, 2]], "normals": [[0, 1, 0], [0, 1, 0], [0, 1, 0], [0, 1, 0]]
+                    {extra}}}}},
+                  "objects": [{{"type": "mesh", "mesh": "sq", "material": "paint"}}],
+                  "lights": [{{"type": "sun", "direction": [0, 1, 0], "irradiance": 1}}]}}}}"#
+            )
+        };
+        let map = |texel: &str, n: usize| {
+            format!(
+                r#", "normal_map": {{"width": 1, "height": 1, "pixels": [{texel}],
+                "uvs": [{uvs}], "tangents": [{t}], "bitangents": [{b}]}}"#,
+                uvs = vec!["[0.5, 0.5]"; n].join(","),
+                t = vec!["[1, 0, 0]"; n].join(","),
+                b = vec!["[0, 0, 1]"; n].join(",")
+            )
+        };
+        let centre = |fb: &crate::Framebuffer| fb.color[2 * 5 + 2][0] as f64;
+        let lambert = 0.5 / std::f64::consts::PI;
+        let plain = centre(&render_job(&job(""), &mut |_| true).unwrap());
+        let flat = centre(&render_job(&job(&map("[0.5, 0.5, 1.0]", 4)), &mut |_| true).unwrap());
+        let tilted = centre(&render_job(&job(&map("[0.75, 0.5, 0.9]", 4)), &mut |_| true).unwrap());
+        // A sharp sun and a Lambert surface: exact up to f32 (measured within 1e-7).
+        assert!((plain - lambert).abs() < 1e-5 * lambert, "{plain}");
+        assert!((flat - plain).abs() < 1e-6, "{flat} vs {plain}");
+        let want = lambert * 0.8 / 0.89f64.sqrt();
+        assert!((tilted - want).abs() < 1e-5 * want, "{tilted} vs {want}");
+        let err = render_job(&job(&map("[0.5, 0.5, 1.0]", 3)), &mut |_| true).unwrap_err();
+        assert!(format!("{err:?}").contains("one entry per position"), "{err:?}");
+        // Orange peel of 30 µm RMS at 0.5 mm on a 2 m square seen 5 × 5: every pixel's normal
+        // tilts differently, so pixels differ (without it, all equal the Lambert value).
+        let peel = r#", "orange_peel": {"amplitude_um": 30, "wavelength_mm": 0.5,
+            "coords": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]}"#;
+        let fb = render_job(&job(peel), &mut |_| true).unwrap();
+        let v: Vec<f64> = fb.color.iter().map(|c| c[0] as f64).collect();
+        let spread = v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
+        assert!(spread > 1e-3 * lambert && v.iter().all(|x| *x <= lambert * 1.0001), "{v:?}");
+        let bad =
+            r#", "orange_peel": {"amplitude_um": 1, "wavelength_mm": 0, "coords": [[0,0,0],[0,0,0],[0,0,0],[0,0,0]]}"#;
+        assert!(render_job(&job(bad), &mut |_| true).is_err());
+    }
+
     #[test]
     fn lights_that_are_not_surfaces() {
         let job = |surface: bool| {

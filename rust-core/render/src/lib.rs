@@ -43,6 +43,7 @@ pub mod integrator;
 pub mod job;
 pub mod lights;
 pub mod output;
+pub mod perturb;
 pub mod scene;
 pub mod shapes;
 pub mod sheet;

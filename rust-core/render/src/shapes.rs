@@ -6,6 +6,7 @@
 //! their own texture coordinates (or none: then uv is zero and the footprint is zero).
 
 use crate::geom::{v3, vmax, vmin, Aabb, Ray, V3};
+use crate::perturb::Perturbation;
 
 /// Geometry of a successful intersection.
 #[derive(Clone, Copy, Debug)]
@@ -35,6 +36,8 @@ pub struct Mesh {
     pub uvs: Vec<[f32; 2]>,
     /// Triangles as vertex indices.
     pub triangles: Vec<[u32; 3]>,
+    /// Shading-normal perturbations (normal map, orange peel), if any.
+    pub perturb: Option<Box<Perturbation>>,
 }
 
 impl Mesh {
@@ -118,6 +121,13 @@ impl Mesh {
         }
         // Keep the geometric normal on the side the mesh's normals say is outside.
         let ng = if ng.dot(ns) < 0.0 { -ng } else { ng };
+        if let Some(pert) = &self.perturb {
+            let n = pert.apply([ia, ib, ic], [b0, b1, b2], [a, b, c], ns);
+            // A normal tilted past the surface is not a valid shading normal: keep the mesh's.
+            if n.dot(ng) > 1e-3 {
+                ns = n;
+            }
+        }
         SurfaceHit { p, ng, ns, dpdu, dpdv, uv }
     }
 }
