@@ -295,7 +295,7 @@ impl Material {
 #[cfg(test)]
 mod tests {
     use super::*;
-    
+
     /// The upsampled spectrum integrates back to the RGB it came from (1e-12: the linear
     /// algebra's rounding is ~1e-15) and white is flat.
     #[test]
@@ -323,7 +323,12 @@ mod tests {
 
     fn dirs() -> Vec<(Vec3<f64>, Vec3<f64>)> {
         let d = |t: f64, p: f64| Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
-        vec![(d(0.3, 0.0), d(0.3, 3.14159)), (d(0.6, 0.2), d(0.5, 3.0)), (d(1.0, 1.0), d(0.2, 4.0)), (d(0.4, 0.0), d(0.9, 2.0))]
+        vec![
+            (d(0.3, 0.0), d(0.3, 3.14159)),
+            (d(0.6, 0.2), d(0.5, 3.0)),
+            (d(1.0, 1.0), d(0.2, 4.0)),
+            (d(0.4, 0.0), d(0.9, 2.0)),
+        ]
     }
 
     /// Worst relative error of the integrated spectrum against the RGB path, relative to the
@@ -344,8 +349,9 @@ mod tests {
     /// round trip).
     #[test]
     fn rgb_materials_integrate_to_their_rgb() {
-        let m = Material::from_json(r#"{"model": "coated_paint", "base_color": [0.45, 0.02, 0.02], "flake_density": 5}"#)
-            .unwrap();
+        let m =
+            Material::from_json(r#"{"model": "coated_paint", "base_color": [0.45, 0.02, 0.02], "flake_density": 5}"#)
+                .unwrap();
         assert!(!m.is_spectral());
         let e = worst(&m);
         println!("RGB paint: spectral integral vs RGB {e:.1e}");
@@ -363,9 +369,15 @@ mod tests {
         for (json, tol) in [
             // measured 2.7e-2 (each: the worst channel over four direction pairs, relative to
             // the largest channel)
-            (r#"{"model": "coated_paint", "pearl_density": 20, "pearl_film_nm": 120, "base_color": [0.05, 0.05, 0.3]}"#, 0.04),
+            (
+                r#"{"model": "coated_paint", "pearl_density": 20, "pearl_film_nm": 120, "base_color": [0.05, 0.05, 0.3]}"#,
+                0.04,
+            ),
             // measured 2.0e-2
-            (r#"{"model": "coated_paint", "pearl_density": 30, "pearl_film_nm": 300, "flake_density": 3, "coat_roughness": 0.1}"#, 0.03),
+            (
+                r#"{"model": "coated_paint", "pearl_density": 30, "pearl_film_nm": 300, "flake_density": 3, "coat_roughness": 0.1}"#,
+                0.03,
+            ),
         ] {
             let m = Material::from_json(json).unwrap();
             assert!(m.is_spectral());
@@ -401,12 +413,14 @@ mod tests {
     /// Sampled weights equal f·cos/pdf at the wavelengths for non-delta samples.
     #[test]
     fn sample_spectral_weight_is_eval_cos_over_pdf() {
-        let m = Material::from_json(r#"{"model": "coated_paint", "pearl_density": 20, "coat_roughness": 0.1}"#).unwrap();
+        let m =
+            Material::from_json(r#"{"model": "coated_paint", "pearl_density": 20, "coat_roughness": 0.1}"#).unwrap();
         let wo = Vec3::new(0.3, 0.1, 0.948_683_3).normalize();
         let l = [450.0, 520.0, 610.0, 700.0];
         let mut n = 0;
         for i in 0..64 {
-            let u = [(i as f64 + 0.5) / 64.0, ((i * 37) % 64) as f64 / 64.0 + 0.004, ((i * 11) % 64) as f64 / 64.0 + 0.007];
+            let u =
+                [(i as f64 + 0.5) / 64.0, ((i * 37) % 64) as f64 / 64.0 + 0.004, ((i * 11) % 64) as f64 / 64.0 + 0.007];
             let Some((s, w)) = m.sample_spectral(wo, u, None, l) else { continue };
             n += 1;
             let f = m.eval_spectral(s.wi, wo, None, l);

@@ -810,9 +810,11 @@ fn spectral_calls_reach_the_core_unchanged() {
         for spatial in [false, true] {
             let (uvp, duvp) = if spatial { (uv.as_ptr(), duv.as_ptr()) } else { (std::ptr::null(), std::ptr::null()) };
             let mut f = vec![1f32; 4 * n];
-            let s = unsafe { lq_eval_spectral(m, n, wi.as_ptr(), wo.as_ptr(), uvp, duvp, lambda.as_ptr(), f.as_mut_ptr()) };
+            let s =
+                unsafe { lq_eval_spectral(m, n, wi.as_ptr(), wo.as_ptr(), uvp, duvp, lambda.as_ptr(), f.as_mut_ptr()) };
             assert_eq!(s, LQ_OK);
-            let (mut swi, mut sw, mut sp, mut sf) = (vec![1f32; 3 * n], vec![1f32; 4 * n], vec![1f32; n], vec![9u32; n]);
+            let (mut swi, mut sw, mut sp, mut sf) =
+                (vec![1f32; 3 * n], vec![1f32; 4 * n], vec![1f32; n], vec![9u32; n]);
             let s = unsafe {
                 lq_sample_spectral(
                     m,
@@ -829,7 +831,8 @@ fn spectral_calls_reach_the_core_unchanged() {
                 )
             };
             assert_eq!(s, LQ_OK);
-            let (mut rwi, mut rw, mut rp, mut rf) = (vec![1f32; 3 * n], vec![1f32; 3 * n], vec![1f32; n], vec![9u32; n]);
+            let (mut rwi, mut rw, mut rp, mut rf) =
+                (vec![1f32; 3 * n], vec![1f32; 3 * n], vec![1f32; n], vec![9u32; n]);
             let s = unsafe {
                 lq_sample_spatial(
                     m,
@@ -865,7 +868,12 @@ fn spectral_calls_reach_the_core_unchanged() {
                 // Same direction, pdf and flags as the RGB sampler (the f64 core path here,
                 // the f32 ABI there: equal within f32 rounding).
                 if sf[i] & LQ_SAMPLE_FAILED == 0 && rf[i] & LQ_SAMPLE_FAILED == 0 {
-                    assert!((sp[i] - rp[i]).abs() <= 1e-4 * rp[i].abs().max(1.0), "{json} pdf {i}: {} vs {}", sp[i], rp[i]);
+                    assert!(
+                        (sp[i] - rp[i]).abs() <= 1e-4 * rp[i].abs().max(1.0),
+                        "{json} pdf {i}: {} vs {}",
+                        sp[i],
+                        rp[i]
+                    );
                     assert_eq!(sf[i] & LQ_SAMPLE_DELTA, rf[i] & LQ_SAMPLE_DELTA);
                 }
             }
@@ -875,7 +883,16 @@ fn spectral_calls_reach_the_core_unchanged() {
         bad[5] = f32::NAN;
         let mut f = vec![1f32; 4 * n];
         let s = unsafe {
-            lq_eval_spectral(m, n, wi.as_ptr(), wo.as_ptr(), std::ptr::null(), std::ptr::null(), bad.as_ptr(), f.as_mut_ptr())
+            lq_eval_spectral(
+                m,
+                n,
+                wi.as_ptr(),
+                wo.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                bad.as_ptr(),
+                f.as_mut_ptr(),
+            )
         };
         assert_eq!(s, LQ_ERR_INVALID_ELEMENT);
         assert_eq!(&f[4..8], &[0.0; 4]);
