@@ -131,12 +131,11 @@ _PLUGINS = ("lacquer.so", "lacquer_path.so")
 def mitsuba_plugin_dir() -> str:
     """Mitsuba's own plugin folder (``<site-packages>/mitsuba/plugins``), which Mitsuba's file
     resolver searches in every process without any registration."""
-    import importlib.util
-
-    spec = importlib.util.find_spec("mitsuba")
-    if spec is None or not spec.submodule_search_locations:
-        raise LacquerError("mitsuba is not installed in this Python (pip install mitsuba==3.9.1)")
-    return os.path.join(list(spec.submodule_search_locations)[0], "plugins")
+    try:
+        import mitsuba
+    except ImportError as e:
+        raise LacquerError("mitsuba is not installed in this Python (pip install mitsuba==3.9.1)") from e
+    return os.path.join(os.path.dirname(os.path.abspath(mitsuba.__file__)), "plugins")
 
 
 def install(target: str | None = None) -> list:
