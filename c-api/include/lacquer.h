@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 5
+#define LQ_ABI_VERSION_MINOR 6
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -124,6 +124,12 @@
  * Lobe bit: spatially varying (sparkle): the `*_spatial` calls differ from the plain ones.
  */
 #define LQ_LOBE_SPATIALLY_VARYING 32
+
+/**
+ * Lobe bit: spectral physics (the pearl paint's thin film, HTSG): `lq_eval_spectral` /
+ * `lq_sample_spectral` carry more than the RGB value upsampled.
+ */
+#define LQ_LOBE_SPECTRAL 64
 
 /**
  * Result of every fallible `lq_*` call. `LQ_OK` is 0; every other value is an error, and
@@ -727,6 +733,56 @@ void lq_set_thread_count(uint32_t n);
 const char *lq_simd_level(void);
 
 /**
+ * `lq_eval_spatial` at four wavelengths per element: `wavelengths_nm` holds 4n floats (nm),
+ * `f` receives 4n floats, f_r at each element's four wavelengths (1/sr, no cosine).
+ *
+ * For the materials `LQ_LOBE_SPECTRAL` marks (the pearl paint's thin film, HTSG) the core
+ * evaluates its physics at each wavelength (a bank of the model built at wavelength nodes
+ * every 5 nm over 360-830 nm, interpolated linearly; built on the first spectral call, so
+ * that call costs more). Every other material returns its RGB value upsampled to a spectrum
+ * that integrates back to that RGB against the CIE 1931 matching functions (three box bands
+ * 360-490-590-830 nm). Wavelengths outside 360-830 nm are clamped; a non-finite wavelength is
+ * LQ_ERR_INVALID_ELEMENT for its element. `uv` / `duv` as in `lq_eval_spatial` (NULL: the
+ * mean lobe). The pdf does not depend on wavelength: use `lq_pdf`.
+ *
+ * # Safety
+ * As `lq_eval_spatial`; `wavelengths_nm` and `f` hold 4n floats.
+ */
+LQ_MUST_USE
+lq_status lq_eval_spectral(const lq_material *m,
+                           size_t n,
+                           const float *wi,
+                           const float *wo,
+                           const float *uv,
+                           const float *duv,
+                           const float *wavelengths_nm,
+                           float *f);
+
+/**
+ * `lq_sample_spatial` with the weight at four wavelengths per element: `wavelengths_nm`
+ * holds 4n floats (nm), `weight` receives 4n floats (f_r · cos θi / pdf at each
+ * wavelength). The direction, pdf and flags are those of `lq_sample_spatial` with the same
+ * inputs; the weight is the spectral `f` of `lq_eval_spectral` times cos θi / pdf (a delta
+ * sample: its lobe's reflectance at each wavelength over the lobe's probability). `uv`,
+ * `duv` and `flags` may be NULL.
+ *
+ * # Safety
+ * As `lq_sample_spatial`; `wavelengths_nm` and `weight` hold 4n floats.
+ */
+LQ_MUST_USE
+lq_status lq_sample_spectral(const lq_material *m,
+                             size_t n,
+                             const float *wo,
+                             const float *u,
+                             const float *uv,
+                             const float *duv,
+                             const float *wavelengths_nm,
+                             float *wi,
+                             float *weight,
+                             float *pdf,
+                             uint32_t *flags);
+
+/**
  * Every registered model as a JSON array (what `lacquer models --json` prints): name,
  * summary, reference, claims {reciprocal, energy_conserving, sampled} and params (name,
  * kind, default, min, max, unit, doc). Free the string with `lq_string_free`.
@@ -855,14 +911,16 @@ lq_status lq_material_param_json(const lq_material *m,
 
 /**
  * The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
- * `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL` and
- * `LQ_LOBE_SPATIALLY_VARYING`, decided by the core from the model and its parameters (no
+ * `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL`,
+ * `LQ_LOBE_SPATIALLY_VARYING` and `LQ_LOBE_SPECTRAL`, decided by the core from the model and its parameters (no
  * sampling).
  *
  * # Safety
  * `m` is NULL or a live handle; `out_lobes` is NULL or writable.
  */
-LQ_MUST_USE lq_status lq_material_lobes(const lq_material *m, uint32_t *out_lobes);
+LQ_MUST_USE
+lq_status lq_material_lobes(const lq_material *m,
+                            uint32_t *out_lobes);
 
 /**
  * The albedo of the material's diffuse (pigment) part, linear Rec.709 RGB (3 floats; zero

@@ -1287,3 +1287,173 @@ pub extern "C" fn lq_simd_level() -> *const std::ffi::c_char {
         lacquer_core::batch::SimdLevel::Scalar => c"scalar".as_ptr(),
     })
 }
+
+// ---------------------------------------------------------------------------------------
+// Spectral: values at four wavelengths per element (Mitsuba's scalar_spectral and any host
+// that traces wavelengths)
+
+/// True when element `i`'s four wavelengths are finite.
+#[inline(always)]
+fn wavelengths_ok(i: usize, l: &[c_float; 4], bad: &mut Invalid) -> bool {
+    if l.iter().all(|&x| finite(x)) {
+        true
+    } else {
+        bad.other(i, "wavelengths_nm", l);
+        false
+    }
+}
+
+/// `lq_eval_spatial` at four wavelengths per element: `wavelengths_nm` holds 4n floats (nm),
+/// `f` receives 4n floats, f_r at each element's four wavelengths (1/sr, no cosine).
+///
+/// For the materials `LQ_LOBE_SPECTRAL` marks (the pearl paint's thin film, HTSG) the core
+/// evaluates its physics at each wavelength (a bank of the model built at wavelength nodes
+/// every 5 nm over 360-830 nm, interpolated linearly; built on the first spectral call, so
+/// that call costs more). Every other material returns its RGB value upsampled to a spectrum
+/// that integrates back to that RGB against the CIE 1931 matching functions (three box bands
+/// 360-490-590-830 nm). Wavelengths outside 360-830 nm are clamped; a non-finite wavelength is
+/// LQ_ERR_INVALID_ELEMENT for its element. `uv` / `duv` as in `lq_eval_spatial` (NULL: the
+/// mean lobe). The pdf does not depend on wavelength: use `lq_pdf`.
+///
+/// # Safety
+/// As `lq_eval_spatial`; `wavelengths_nm` and `f` hold 4n floats.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_eval_spectral(
+    m: *const lq_material,
+    n: usize,
+    wi: *const c_float,
+    wo: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    wavelengths_nm: *const c_float,
+    f: *mut c_float,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: handle contract above.
+        let m: &Material = unsafe { material(m) }?;
+        if n == 0 {
+            return Ok(());
+        }
+        let mut b = Batch::<6>::new(n);
+        let wi = b.input::<c_float, 3>("wi", wi)?;
+        let wo = b.input::<c_float, 3>("wo", wo)?;
+        let uv = b.optional_input::<c_float, 2>("uv", uv)?;
+        let duv = b.optional_input::<c_float, 4>("duv", duv)?;
+        if duv.is_some() && uv.is_none() {
+            return Err(Failure::invalid("`duv` (footprint) was given without `uv` (position)"));
+        }
+        let lambda = b.input::<c_float, 4>("wavelengths_nm", wavelengths_nm)?;
+        let f = b.output::<c_float, 4>("f", f)?;
+        b.check_overlaps()?;
+        // SAFETY: every array validated (non-NULL, aligned, sized, output disjoint).
+        let (wi, wo, lambda, f) = unsafe { (wi.slice(), wo.slice(), lambda.slice(), f.slice()) };
+        let spatial = unsafe { Spatial { uv: uv.map(|a| a.slice()), duv: duv.map(|a| a.slice()) } };
+        let mut bad = Invalid::default();
+        for i in 0..n {
+            let (a, o) = (vec3(&wi[i]), vec3(&wo[i]));
+            f[i] = if valid(i, a, o, &spatial, &mut bad) && wavelengths_ok(i, &lambda[i], &mut bad) {
+                let at = spatial.point(i);
+                m.eval_spectral(a.cast(), o.cast(), at.as_ref(), lambda[i].map(f64::from)).map(|x| x as c_float)
+            } else {
+                [0.0; 4]
+            };
+        }
+        bad.finish(n)
+    })
+}
+
+/// `lq_sample_spatial` with the weight at four wavelengths per element: `wavelengths_nm`
+/// holds 4n floats (nm), `weight` receives 4n floats (f_r · cos θi / pdf at each
+/// wavelength). The direction, pdf and flags are those of `lq_sample_spatial` with the same
+/// inputs; the weight is the spectral `f` of `lq_eval_spectral` times cos θi / pdf (a delta
+/// sample: its lobe's reflectance at each wavelength over the lobe's probability). `uv`,
+/// `duv` and `flags` may be NULL.
+///
+/// # Safety
+/// As `lq_sample_spatial`; `wavelengths_nm` and `weight` hold 4n floats.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_sample_spectral(
+    m: *const lq_material,
+    n: usize,
+    wo: *const c_float,
+    u: *const c_float,
+    uv: *const c_float,
+    duv: *const c_float,
+    wavelengths_nm: *const c_float,
+    wi: *mut c_float,
+    weight: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+) -> lq_status {
+    guard(|| {
+        // SAFETY: handle contract above.
+        let m: &Material = unsafe { material(m) }?;
+        if n == 0 {
+            return Ok(());
+        }
+        let mut b = Batch::<9>::new(n);
+        let wo = b.input::<c_float, 3>("wo", wo)?;
+        let u = b.input::<c_float, 3>("u", u)?;
+        let uv = b.optional_input::<c_float, 2>("uv", uv)?;
+        let duv = b.optional_input::<c_float, 4>("duv", duv)?;
+        if duv.is_some() && uv.is_none() {
+            return Err(Failure::invalid("`duv` (footprint) was given without `uv` (position)"));
+        }
+        let lambda = b.input::<c_float, 4>("wavelengths_nm", wavelengths_nm)?;
+        let wi = b.output::<c_float, 3>("wi", wi)?;
+        let weight = b.output::<c_float, 4>("weight", weight)?;
+        let pdf = b.output::<c_float, 1>("pdf", pdf)?;
+        let flags = b.optional_output::<u32, 1>("flags", flags)?;
+        b.check_overlaps()?;
+        // SAFETY: every array validated (non-NULL, aligned, sized, outputs disjoint).
+        let (wo, u, lambda) = unsafe { (wo.slice(), u.slice(), lambda.slice()) };
+        let (wi, weight, pdf) = unsafe { (wi.slice(), weight.slice(), pdf.slice()) };
+        let mut flags = flags.map(|a| unsafe { a.slice() });
+        let spatial = unsafe { Spatial { uv: uv.map(|a| a.slice()), duv: duv.map(|a| a.slice()) } };
+        let mut bad = Invalid::default();
+        for i in 0..n {
+            let o = vec3(&wo[i]);
+            let ok = if !usable(o) {
+                bad.direction(i, "wo", o);
+                false
+            } else if !u[i].iter().all(|&x| finite(x)) {
+                bad.other(i, "u", &u[i]);
+                false
+            } else {
+                spatial.check(i, &mut bad) && wavelengths_ok(i, &lambda[i], &mut bad)
+            };
+            let at = spatial.point(i);
+            let s = if ok {
+                m.sample_spectral(o.cast(), u[i].map(f64::from), at.as_ref(), lambda[i].map(f64::from))
+            } else {
+                None
+            };
+            let flag = match s {
+                Some((s, w)) if w.iter().all(|x| x.is_finite()) => {
+                    wi[i] = [s.wi.x as c_float, s.wi.y as c_float, s.wi.z as c_float];
+                    weight[i] = w.map(|x| x as c_float);
+                    pdf[i][0] = s.pdf as c_float;
+                    if s.delta {
+                        LQ_SAMPLE_DELTA
+                    } else {
+                        0
+                    }
+                }
+                _ => {
+                    (wi[i], weight[i], pdf[i][0]) = ([0.0; 3], [0.0; 4], 0.0);
+                    if ok {
+                        LQ_SAMPLE_FAILED
+                    } else {
+                        LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT
+                    }
+                }
+            };
+            if let Some(fl) = flags.as_deref_mut() {
+                fl[i][0] = flag;
+            }
+        }
+        bad.finish(n)
+    })
+}

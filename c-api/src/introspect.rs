@@ -23,6 +23,9 @@ pub const LQ_LOBE_ANISOTROPIC: u32 = 8;
 pub const LQ_LOBE_NON_RECIPROCAL: u32 = 16;
 /// Lobe bit: spatially varying (sparkle): the `*_spatial` calls differ from the plain ones.
 pub const LQ_LOBE_SPATIALLY_VARYING: u32 = 32;
+/// Lobe bit: spectral physics (the pearl paint's thin film, HTSG): `lq_eval_spectral` /
+/// `lq_sample_spectral` carry more than the RGB value upsampled.
+pub const LQ_LOBE_SPECTRAL: u32 = 64;
 
 // The C constants are literals (cbindgen copies them); they must equal the core's bits.
 const _: () = assert!(
@@ -32,6 +35,7 @@ const _: () = assert!(
         && LQ_LOBE_ANISOTROPIC == bits::ANISOTROPIC
         && LQ_LOBE_NON_RECIPROCAL == bits::NON_RECIPROCAL
         && LQ_LOBE_SPATIALLY_VARYING == bits::SPATIALLY_VARYING
+        && LQ_LOBE_SPECTRAL == bits::SPECTRAL
 );
 
 /// Kind of a model parameter (`lq_param_spec.kind`).
@@ -246,8 +250,8 @@ pub unsafe extern "C" fn lq_material_param_json(
 }
 
 /// The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
-/// `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL` and
-/// `LQ_LOBE_SPATIALLY_VARYING`, decided by the core from the model and its parameters (no
+/// `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL`,
+/// `LQ_LOBE_SPATIALLY_VARYING` and `LQ_LOBE_SPECTRAL`, decided by the core from the model and its parameters (no
 /// sampling).
 ///
 /// # Safety

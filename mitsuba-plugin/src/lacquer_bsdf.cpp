@@ -16,8 +16,10 @@
 //   NonSymmetric, SpatiallyVarying flags      LQ_LOBE_NON_RECIPROCAL, _SPATIALLY_VARYING
 //   eval_diffuse_reflectance                  lq_material_diffuse_reflectance (pigment albedo)
 //
-// Variants: scalar_rgb, scalar_spectral (the RGB result is upsampled per evaluation with
-// Mitsuba's own sRGB model, Jakob & Hanika 2019, scaled for values above 1) and llvm_ad_rgb
+// Variants: scalar_rgb, scalar_spectral (materials with spectral physics, LQ_LOBE_SPECTRAL:
+// evaluated by the core at the ray's wavelengths, lq_eval_spectral / lq_sample_spectral; the
+// others: the RGB result upsampled per evaluation with Mitsuba's own sRGB model, Jakob &
+// Hanika 2019, scaled for values above 1) and llvm_ad_rgb
 // (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
 // the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
 // write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
@@ -338,6 +340,9 @@ public:
         if constexpr (!dr::is_jit_v<Float>) {
             if (!active)
                 return { bs, 0.f };
+            if constexpr (is_spectral_v<Spectrum>)
+                if (m_lobes & LQ_LOBE_SPECTRAL)
+                    return sample_spectral(si, sample1, sample2, smooth_on, delta_on, active);
             float wo[3] = { si.wi.x(), si.wi.y(), si.wi.z() },
                   u[3] = { sample1, sample2.x(), sample2.y() }, wi[3], weight[3], pdf;
             uint32_t flags = 0;
@@ -495,6 +500,9 @@ private:
         if constexpr (!dr::is_jit_v<Float>) {
             if (!active)
                 return { 0.f, 0.f };
+            if constexpr (is_spectral_v<Spectrum>)
+                if (m_lobes & LQ_LOBE_SPECTRAL)
+                    return eval_pdf_spectral(si, wo, active, want_f, want_pdf);
             float a[3] = { wo.x(), wo.y(), wo.z() }, b[3] = { si.wi.x(), si.wi.y(), si.wi.z() };
             float f[3] = { 0.f, 0.f, 0.f }, pdf = 0.f;
             lq_material *m = m_material.get();
@@ -592,6 +600,88 @@ private:
                 pdf_v = dr::select(active, dr::load<Float>(pdf.data(), n), 0.f);
             return { value, pdf_v };
         }
+    }
+
+    // ---- scalar_spectral: materials with spectral physics (LQ_LOBE_SPECTRAL) ---------------
+    // The core evaluates at the ray's four wavelengths (lq_eval_spectral / lq_sample_spectral):
+    // the pearl paint's thin film and HTSG are not projected to RGB first. Other materials
+    // keep the RGB path with Mitsuba's upsampling (from_rgb).
+
+    /// The ray's wavelengths (nm) as the C ABI takes them.
+    static void wavelengths_of(const SurfaceInteraction3f &si, float *lambda) {
+        if constexpr (is_spectral_v<Spectrum> && !dr::is_jit_v<Float>) {
+            for (size_t k = 0; k < 4; ++k)
+                lambda[k] = si.wavelengths[k];
+        } else {
+            DRJIT_MARK_USED(si);
+            DRJIT_MARK_USED(lambda);
+        }
+    }
+
+    /// Four values at the ray's wavelengths as this variant's spectrum.
+    static UnpolarizedSpectrum from_spectral(const float *v) {
+        if constexpr (is_spectral_v<Spectrum> && !dr::is_jit_v<Float>)
+            return UnpolarizedSpectrum(v[0], v[1], v[2], v[3]);
+        else {
+            DRJIT_MARK_USED(v);
+            return UnpolarizedSpectrum(0.f);
+        }
+    }
+
+    /// eval_pdf_impl of scalar_spectral for LQ_LOBE_SPECTRAL materials.
+    std::pair<Spectrum, Float> eval_pdf_spectral(const SurfaceInteraction3f &si, const Vector3f &wo,
+                                                 Mask active, bool want_f, bool want_pdf) const {
+        float a[3] = { wo.x(), wo.y(), wo.z() }, b[3] = { si.wi.x(), si.wi.y(), si.wi.z() };
+        float lambda[4], f[4] = { 0.f, 0.f, 0.f, 0.f }, pdf = 0.f;
+        lq_material *m = m_material.get();
+        wavelengths_of(si, lambda);
+        bool footprint = use_footprint(si);
+        float uv[2], duv[4];
+        if (footprint)
+            spatial_inputs(si, uv, duv);
+        if (want_pdf)
+            lacquer_detail::check(lq_pdf_one(m, a, b, &pdf), "lq_pdf_one");
+        UnpolarizedSpectrum value(0.f);
+        if (want_f) {
+            lacquer_detail::check(lq_eval_spectral(m, 1, a, b, footprint ? uv : nullptr,
+                                                   footprint ? duv : nullptr, lambda, f),
+                                  "lq_eval_spectral");
+            value = from_spectral(f) * std::max(wo.z(), 0.f);
+            if (m_tint)
+                value *= m_tint->eval(si, active);
+        }
+        return { depolarizer<Spectrum>(value), pdf };
+    }
+
+    /// sample() of scalar_spectral for LQ_LOBE_SPECTRAL materials.
+    std::pair<BSDFSample3f, Spectrum> sample_spectral(const SurfaceInteraction3f &si, Float sample1,
+                                                      const Point2f &sample2, bool smooth_on,
+                                                      bool delta_on, Mask active) const {
+        BSDFSample3f bs = dr::zeros<BSDFSample3f>();
+        float wo[3] = { si.wi.x(), si.wi.y(), si.wi.z() },
+              u[3] = { sample1, sample2.x(), sample2.y() }, wi[3], weight[4], pdf, lambda[4];
+        uint32_t flags = 0;
+        wavelengths_of(si, lambda);
+        bool footprint = use_footprint(si);
+        float uv[2], duv[4];
+        if (footprint)
+            spatial_inputs(si, uv, duv);
+        lacquer_detail::check(lq_sample_spectral(m_material.get(), 1, wo, u, footprint ? uv : nullptr,
+                                                 footprint ? duv : nullptr, lambda, wi, weight,
+                                                 &pdf, &flags),
+                              "lq_sample_spectral");
+        bool delta = (flags & LQ_SAMPLE_DELTA) != 0;
+        if ((flags & LQ_SAMPLE_FAILED) || !(pdf > 0.f) || (delta ? !delta_on : !smooth_on))
+            return { bs, 0.f };
+        bs.wo = Vector3f(wi[0], wi[1], wi[2]);
+        bs.pdf = pdf;
+        bs.eta = 1.f;
+        bs.sampled_type = delta ? +BSDFFlags::DeltaReflection : m_smooth_sampled;
+        bs.sampled_component = delta ? m_delta_component : 0u;
+        UnpolarizedSpectrum value = from_spectral(weight);
+        if (m_tint)
+            value *= m_tint->eval(si, active);
+        return { bs, depolarizer<Spectrum>(value) };
     }
 
     /// Lacquer RGB (linear Rec.709) to this variant's spectrum type.

@@ -83,3 +83,25 @@ def test_fallback_in_scalar_rgb_renders(scalar_rgb, lacquer_py):
         "light": {"type": "constant"}})
     img = np.array(mi.render(scene))
     assert np.isfinite(img).all() and img.mean() > 0.01
+
+
+def test_fallback_typed_properties_equal_native(scalar_rgb, lacquer_py):
+    """The fallback reads typed properties as the native plugin does: model / preset +
+    overrides give the same values; unknown names and bad values are errors naming them."""
+    lacquer_mitsuba.register(python_name="lacquer_py")
+    ctx, si = mi.BSDFContext(), mi.SurfaceInteraction3f()
+    si.wi = mi.Vector3f(0.3, 0.1, 0.9487)
+    wo = mi.Vector3f(0.5, 0.2, 0.8426)
+    for spec in ({"model": "coated_paint", "flake_density": 5.0, "sparkle": False,
+                  "base_color": mi.ScalarColor3f(0.45, 0.02, 0.02), "flake_material": "Au"},
+                 {"preset": "pearl_blue", "coat_roughness": 0.05},
+                 {"material": '{"model": "lambert"}', "albedo": 0.3}):
+        nat = mi.load_dict({"type": "lacquer", **spec})
+        py = mi.load_dict({"type": "lacquer_py", **spec})
+        assert np.allclose(np.array(nat.eval(ctx, si, wo)), np.array(py.eval(ctx, si, wo)), rtol=1e-6), spec
+    with pytest.raises(RuntimeError, match='unknown property "flake_densty".*flake_density'):
+        mi.load_dict({"type": "lacquer_py", "model": "coated_paint", "flake_densty": 5.0})
+    with pytest.raises(Exception, match="flake_density"):
+        mi.load_dict({"type": "lacquer_py", "model": "coated_paint", "flake_density": -1.0})
+    with pytest.raises(RuntimeError, match="exactly one"):
+        mi.load_dict({"type": "lacquer_py", "model": "lambert", "preset": "gold_flake_8"})

@@ -99,7 +99,7 @@ fn timing() {
 }
 
 fn htsg(sigma0: f64, tau: f64, tolerance: f64) -> Htsg {
-    Htsg { sigma0, tau, eta: AL_ETA, k: AL_K, diffuse: [0.0; 3], tolerance }
+    Htsg { sigma0, tau, eta: AL_ETA, k: AL_K, diffuse: [0.0; 3], tolerance, lambda_um: LAMBDA_RGB_UM }
 }
 
 /// The directional diffuse term with the series replaced by its leading asymptotic term

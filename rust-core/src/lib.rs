@@ -51,6 +51,7 @@ pub mod real;
 pub mod rng;
 pub mod sampling;
 pub mod special;
+pub mod spectral;
 pub mod table;
 
 pub use bxdf::{BsdfSample, Bxdf, Claims, ModelInfo, SurfacePoint};

@@ -23,6 +23,9 @@ pub mod bits {
     pub const NON_RECIPROCAL: u32 = 16;
     /// `eval_at` differs from `eval` (sparkle: uv and footprint matter).
     pub const SPATIALLY_VARYING: u32 = 32;
+    /// The value depends on the wavelength beyond its RGB projection (thin film, HTSG):
+    /// `Material::eval_spectral` evaluates the physics per wavelength.
+    pub const SPECTRAL: u32 = 64;
 }
 
 /// Models whose only lobe is diffuse.
@@ -123,6 +126,9 @@ pub(crate) fn lobes(m: &Material) -> u32 {
     }
     if m.spatially_varying() {
         out |= bits::SPATIALLY_VARYING;
+    }
+    if crate::spectral::is_spectral(m) {
+        out |= bits::SPECTRAL;
     }
     out
 }

@@ -19,11 +19,13 @@ pub struct Material {
     model: Model,
     info: &'static ModelInfo,
     params: Params,
+    /// The spectral bank (`crate::spectral`), built on the first spectral evaluation.
+    spectral: std::sync::OnceLock<Option<Box<crate::spectral::SpectralBank>>>,
 }
 
 /// Returns a unit version of `w`, or `None` if it is not finite or has zero length.
 #[inline]
-fn sanitize<T: Real>(w: Vec3<T>) -> Option<Vec3<T>> {
+pub(crate) fn sanitize<T: Real>(w: Vec3<T>) -> Option<Vec3<T>> {
     let l2 = w.length_squared();
     if !l2.is_finite() || !(l2 > T::zero()) {
         return None;
@@ -36,6 +38,11 @@ fn sanitize<T: Real>(w: Vec3<T>) -> Option<Vec3<T>> {
 }
 
 impl Material {
+    /// The lazily built spectral bank of this material (see `crate::spectral`).
+    pub(crate) fn spectral_bank_cell(&self) -> &std::sync::OnceLock<Option<Box<crate::spectral::SpectralBank>>> {
+        &self.spectral
+    }
+
     /// Parses material JSON: `{"model": ..., params...}` or `{"preset": "name"}`.
     pub fn from_json(text: &str) -> Result<Self, Error> {
         let v: Value = serde_json::from_str(text).map_err(|e| Error::Json(e.to_string()))?;
@@ -74,13 +81,13 @@ impl Material {
     /// Builds a model from already validated parameters.
     pub fn from_params(info: &'static ModelInfo, params: Params) -> Result<Self, Error> {
         let model = (info.build)(&params)?;
-        Ok(Self { model, info, params })
+        Ok(Self { model, info, params, spectral: std::sync::OnceLock::new() })
     }
 
     /// Assembles a material from a model built outside its registry `build` (e.g. a measured
     /// table held in memory); `params` must be the model's.
     pub(crate) fn from_parts(info: &'static ModelInfo, params: Params, model: Model) -> Self {
-        Self { model, info, params }
+        Self { model, info, params, spectral: std::sync::OnceLock::new() }
     }
 
     /// A model with all its defaults.

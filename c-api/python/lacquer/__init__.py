@@ -60,6 +60,7 @@ __all__ = [
     "LOBE_ANISOTROPIC",
     "LOBE_NON_RECIPROCAL",
     "LOBE_SPATIALLY_VARYING",
+    "LOBE_SPECTRAL",
     "set_thread_count",
     "choose_configuration",
     "simd_level",
@@ -223,6 +224,8 @@ def _ptr(a: Optional[np.ndarray]):
 #: Lobe bits of :meth:`Material.lobes` (the C ABI's ``LQ_LOBE_*``).
 LOBE_DIFFUSE, LOBE_GLOSSY, LOBE_DELTA = 1, 2, 4
 LOBE_ANISOTROPIC, LOBE_NON_RECIPROCAL, LOBE_SPATIALLY_VARYING = 8, 16, 32
+#: Lobe bit: spectral physics (thin film, HTSG; the C ABI's lq_eval_spectral, ABI 0.6).
+LOBE_SPECTRAL = 64
 
 
 class Material:
@@ -300,7 +303,7 @@ class Material:
     def lobes(self) -> int:
         """The kinds of lobes (``lq_material_lobes``): a bit set of :data:`LOBE_DIFFUSE`,
         :data:`LOBE_GLOSSY`, :data:`LOBE_DELTA`, :data:`LOBE_ANISOTROPIC`,
-        :data:`LOBE_NON_RECIPROCAL`, :data:`LOBE_SPATIALLY_VARYING`."""
+        :data:`LOBE_NON_RECIPROCAL`, :data:`LOBE_SPATIALLY_VARYING`, :data:`LOBE_SPECTRAL`."""
         out = c_uint32()
         _check(_native.lib.lq_material_lobes(self._h(), byref(out)))
         return int(out.value)

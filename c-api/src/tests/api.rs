@@ -782,3 +782,121 @@ fn soa_calls_match_the_interleaved_calls() {
         unsafe { lq_material_free(m) };
     }
 }
+
+#[test]
+fn spectral_calls_reach_the_core_unchanged() {
+    // lq_eval_spectral / lq_sample_spectral give exactly Material::eval_spectral /
+    // sample_spectral (rounded to f32), with and without a footprint; the direction, pdf and
+    // flags of a spectral sample are lq_sample_spatial's; bad wavelengths are per-element
+    // errors; the lobe bit says which materials are spectral.
+    let n = 64;
+    let (wi, wo, u) = inputs(n, 23);
+    let (wi, wo, u): (Vec<f32>, Vec<f32>, Vec<f32>) = (cast(&wi), cast(&wo), cast(&u));
+    let lambda: Vec<f32> = (0..4 * n).map(|k| 360.0 + ((k * 37) % 470) as f32).collect();
+    let uv: Vec<f32> = (0..2 * n).map(|k| (k as f32 * 0.37).fract()).collect();
+    let duv: Vec<f32> = (0..4 * n).map(|k| [1e-4, 0.0, 0.0, 1e-4][k % 4]).collect();
+    let v3 = |a: &[f32], i: usize| Vec3::new(a[3 * i] as f64, a[3 * i + 1] as f64, a[3 * i + 2] as f64);
+    let l4 = |i: usize| [0, 1, 2, 3].map(|c| lambda[4 * i + c] as f64);
+    for (json, spectral) in [
+        (r#"{"model": "coated_paint", "pearl_density": 20, "flake_density": 3}"#, true),
+        (r#"{"model": "htsg"}"#, true),
+        (r#"{"model": "lambert", "albedo": [0.2, 0.5, 0.1]}"#, false),
+    ] {
+        let core = Material::from_json(json).unwrap();
+        let m = material(json);
+        let mut lobes = 0u32;
+        assert_eq!(unsafe { lq_material_lobes(m, &mut lobes) }, LQ_OK);
+        assert_eq!(lobes & LQ_LOBE_SPECTRAL != 0, spectral, "{json}");
+        for spatial in [false, true] {
+            let (uvp, duvp) = if spatial { (uv.as_ptr(), duv.as_ptr()) } else { (std::ptr::null(), std::ptr::null()) };
+            let mut f = vec![1f32; 4 * n];
+            let s =
+                unsafe { lq_eval_spectral(m, n, wi.as_ptr(), wo.as_ptr(), uvp, duvp, lambda.as_ptr(), f.as_mut_ptr()) };
+            assert_eq!(s, LQ_OK);
+            let (mut swi, mut sw, mut sp, mut sf) =
+                (vec![1f32; 3 * n], vec![1f32; 4 * n], vec![1f32; n], vec![9u32; n]);
+            let s = unsafe {
+                lq_sample_spectral(
+                    m,
+                    n,
+                    wo.as_ptr(),
+                    u.as_ptr(),
+                    uvp,
+                    duvp,
+                    lambda.as_ptr(),
+                    swi.as_mut_ptr(),
+                    sw.as_mut_ptr(),
+                    sp.as_mut_ptr(),
+                    sf.as_mut_ptr(),
+                )
+            };
+            assert_eq!(s, LQ_OK);
+            let (mut rwi, mut rw, mut rp, mut rf) =
+                (vec![1f32; 3 * n], vec![1f32; 3 * n], vec![1f32; n], vec![9u32; n]);
+            let s = unsafe {
+                lq_sample_spatial(
+                    m,
+                    n,
+                    wo.as_ptr(),
+                    u.as_ptr(),
+                    uvp,
+                    duvp,
+                    rwi.as_mut_ptr(),
+                    rw.as_mut_ptr(),
+                    rp.as_mut_ptr(),
+                    rf.as_mut_ptr(),
+                )
+            };
+            assert_eq!(s, LQ_OK);
+            for i in 0..n {
+                let at = spatial.then(|| lacquer_core::SurfacePoint {
+                    uv: [uv[2 * i] as f64, uv[2 * i + 1] as f64],
+                    duv_dx: [duv[4 * i] as f64, duv[4 * i + 1] as f64],
+                    duv_dy: [duv[4 * i + 2] as f64, duv[4 * i + 3] as f64],
+                });
+                let want = core.eval_spectral(v3(&wi, i), v3(&wo, i), at.as_ref(), l4(i)).map(|x| x as f32);
+                assert_eq!(&f[4 * i..4 * i + 4], &want, "{json} eval element {i}");
+                let uu = [0, 1, 2].map(|c| u[3 * i + c] as f64);
+                match core.sample_spectral(v3(&wo, i), uu, at.as_ref(), l4(i)) {
+                    Some((smp, w)) => {
+                        assert_eq!(&sw[4 * i..4 * i + 4], &w.map(|x| x as f32), "{json} weight {i}");
+                        assert_eq!(sp[i], smp.pdf as f32);
+                        assert_eq!(sf[i] & LQ_SAMPLE_DELTA != 0, smp.delta);
+                    }
+                    None => assert_eq!((sp[i], sf[i] & LQ_SAMPLE_FAILED), (0.0, LQ_SAMPLE_FAILED), "{json} {i}"),
+                }
+                // Same direction, pdf and flags as the RGB sampler (the f64 core path here,
+                // the f32 ABI there: equal within f32 rounding).
+                if sf[i] & LQ_SAMPLE_FAILED == 0 && rf[i] & LQ_SAMPLE_FAILED == 0 {
+                    assert!(
+                        (sp[i] - rp[i]).abs() <= 1e-4 * rp[i].abs().max(1.0),
+                        "{json} pdf {i}: {} vs {}",
+                        sp[i],
+                        rp[i]
+                    );
+                    assert_eq!(sf[i] & LQ_SAMPLE_DELTA, rf[i] & LQ_SAMPLE_DELTA);
+                }
+            }
+        }
+        // A NaN wavelength: that element is zero, the others are evaluated, the status says so.
+        let mut bad = lambda.clone();
+        bad[5] = f32::NAN;
+        let mut f = vec![1f32; 4 * n];
+        let s = unsafe {
+            lq_eval_spectral(
+                m,
+                n,
+                wi.as_ptr(),
+                wo.as_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+                bad.as_ptr(),
+                f.as_mut_ptr(),
+            )
+        };
+        assert_eq!(s, LQ_ERR_INVALID_ELEMENT);
+        assert_eq!(&f[4..8], &[0.0; 4]);
+        assert!(last_error().contains("wavelengths_nm"), "{}", last_error());
+        unsafe { lq_material_free(m) };
+    }
+}

@@ -6,6 +6,10 @@
     lacquer_mitsuba.register()
     bsdf = mi.load_dict({"type": "lacquer", "preset": "gold_flake_8"})
 
+Or, once per environment, ``python -m lacquer_mitsuba install`` (``install()``) links the
+native plugins into Mitsuba's own plugin folder: then ``mi.load_file`` / XML find ``lacquer``
+in every process with no ``register()`` call (native variants only; no Python fallback).
+
 `register()` adds this package's folder to Mitsuba's file resolver, so that Mitsuba finds the
 native plugin ``plugins/lacquer.so`` (built by ``mitsuba-plugin/build.sh``) for the variants it
 was compiled for (scalar_rgb, scalar_spectral, llvm_ad_rgb). For any other variant, or when
@@ -24,7 +28,8 @@ import contextlib
 import json
 import os
 
-__all__ = ["register", "plugin_dir", "plugin_path", "build_info", "native_variants", "wavefront", "LacquerError"]
+__all__ = ["register", "install", "uninstall", "mitsuba_plugin_dir", "plugin_dir", "plugin_path", "build_info", "native_variants",
+           "wavefront", "LacquerError"]
 
 #: Variants the native plugin registers (when built with the llvm variant).
 native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
@@ -117,6 +122,67 @@ def register(fallback: bool = True, python_name: str | None = None) -> str:
         raise LacquerError(_missing_message(variant) + f" (Python fallback unavailable: {e})") from e
     fb.register_python_bsdf()
     return "python"
+
+
+#: The native plugins ``install`` links into Mitsuba's own plugin folder.
+_PLUGINS = ("lacquer.so", "lacquer_path.so")
+
+
+def mitsuba_plugin_dir() -> str:
+    """Mitsuba's own plugin folder (``<site-packages>/mitsuba/plugins``), which Mitsuba's file
+    resolver searches in every process without any registration."""
+    try:
+        import mitsuba
+    except ImportError as e:
+        raise LacquerError("mitsuba is not installed in this Python (pip install mitsuba==3.9.1)") from e
+    return os.path.join(os.path.dirname(os.path.abspath(mitsuba.__file__)), "plugins")
+
+
+def install(target: str | None = None) -> list:
+    """The one step that lets ``mi.load_file`` / XML / ``mi.load_dict`` find ``lacquer`` (and
+    the ``lacquer_path`` integrator) in every later process without ``register()``: symbolic
+    links to this package's native plugins in Mitsuba's plugin folder (``target`` overrides
+    it). Refuses (``LacquerError``, naming both versions) when the plugins were built for
+    another Mitsuba. Returns the links made. Shell: ``python -m lacquer_mitsuba install``.
+    ``uninstall()`` removes them."""
+    import importlib.metadata
+
+    target = target or mitsuba_plugin_dir()
+    built = build_info().get("mitsuba")
+    if not os.path.exists(plugin_path()) or not built:
+        raise LacquerError(_missing_message("any"))
+    try:
+        running = importlib.metadata.version("mitsuba")
+    except importlib.metadata.PackageNotFoundError:
+        running = None
+    if running and running != built:
+        raise LacquerError(f"the native lacquer plugin was built for Mitsuba {built}, but Mitsuba {running} is "
+                           f"installed: install mitsuba=={built} or rebuild the plugin against this Mitsuba")
+    if not os.path.isdir(target):
+        raise LacquerError(f"Mitsuba's plugin folder {target} does not exist")
+    made = []
+    for name in _PLUGINS:
+        src, dst = os.path.join(_HERE, "plugins", name), os.path.join(target, name)
+        if os.path.lexists(dst):
+            if os.path.islink(dst):
+                os.remove(dst)
+            else:
+                raise LacquerError(f"{dst} exists and is not a link made by lacquer_mitsuba: not replaced")
+        os.symlink(src, dst)
+        made.append(dst)
+    return made
+
+
+def uninstall(target: str | None = None) -> list:
+    """Removes the links ``install()`` made (only symbolic links to lacquer plugins)."""
+    target = target or mitsuba_plugin_dir()
+    removed = []
+    for name in _PLUGINS:
+        dst = os.path.join(target, name)
+        if os.path.islink(dst):
+            os.remove(dst)
+            removed.append(dst)
+    return removed
 
 
 def _missing_message(variant: str) -> str:

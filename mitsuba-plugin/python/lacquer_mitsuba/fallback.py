@@ -1,8 +1,9 @@
 """Pure-Python fallback of the `lacquer` BSDF, for users without a compiler and for variants the
 native plugin does not serve (e.g. llvm_ad_mono, cuda_ad_rgb): a ``mi.BSDF`` subclass that
 evaluates whole arrays through the ``lacquer`` ctypes package (c-api/python) over
-liblacquer.so. Same parameters and conventions as the native plugin (``material`` /
-``preset``, ``tint``), without the sparkle footprint. RGB and monochrome variants only
+liblacquer.so. Same parameters and conventions as the native plugin (``model`` / ``preset`` /
+``material`` with typed properties for the model's parameters, ``tint``), without the
+sparkle footprint and ``mi.traverse`` editing. RGB and monochrome variants only
 (spectral variants need the native plugin).
 
 In JIT variants it needs wavefront mode, like the native plugin. In scalar variants Mitsuba
@@ -11,6 +12,7 @@ calls it once per interaction, through Python: correct but slow (use the native 
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 
@@ -68,6 +70,56 @@ def _spectrum(rgb):
     return mi.Spectrum(_vec3(rgb))
 
 
+#: Plugin properties that are not material parameters.
+_PLUGIN_KEYS = ("model", "preset", "material", "tint", "footprint")
+
+
+def _property_value(props, key):
+    """A Mitsuba property as a JSON value: colours as [r, g, b], numbers, booleans, strings."""
+    v = props[key]
+    if isinstance(v, (bool, int, float, str)):
+        return v
+    a = np.array(v, dtype=np.float64).ravel()
+    if a.size == 3:
+        return [float(x) for x in a]
+    if a.size == 1:
+        return float(a[0])
+    raise RuntimeError(f'lacquer: property "{key}" has a type the plugin cannot use ({type(v).__name__})')
+
+
+def material_from_properties(lq, props) -> dict:
+    """The material JSON of the plugin's properties, as the native plugin reads them: exactly
+    one of ``model`` / ``preset`` / ``material`` gives the starting values, and every other
+    property names a parameter of that model (typed: <float>, <integer>, <rgb>, <boolean>,
+    <string>) and overrides it. Unknown names are an error naming the model's parameters; the
+    core's validation names the range of a bad value."""
+    base = [k for k in ("model", "preset", "material") if k in props]
+    if len(base) != 1:
+        raise RuntimeError('lacquer: give exactly one of "model", "preset" or "material"')
+    if "material" in props:
+        material = json.loads(props["material"])
+    elif "preset" in props:
+        found = [p for p in lq.presets() if p["name"] == props["preset"]]
+        if not found:
+            raise RuntimeError(f'lacquer: unknown preset "{props["preset"]}"')
+        material = dict(found[0]["material"])
+    else:
+        material = {"model": props["model"]}
+    model = material.get("model")
+    infos = {m["name"]: m for m in lq.models()}
+    if model not in infos:
+        raise RuntimeError(f'lacquer: unknown model "{model}" (lacquer models lists {", ".join(infos)})')
+    names = [p["name"] for p in infos[model]["params"]]
+    for key in props.keys():
+        if key in _PLUGIN_KEYS:
+            continue
+        if key not in names:
+            raise RuntimeError(f'lacquer: unknown property "{key}": model "{model}" has the parameters '
+                               f'{", ".join(names)}')
+        material[key] = _property_value(props, key)
+    return material
+
+
 _CLASSES = {}
 
 
@@ -87,10 +139,7 @@ def _make_class():
                 raise RuntimeError("lacquer (Python fallback): RGB and monochrome variants only; spectral "
                                    "variants need the native plugin (mitsuba-plugin/build.sh)")
             lq = _lacquer()
-            has_m, has_p = "material" in props, "preset" in props
-            if has_m == has_p:
-                raise RuntimeError('lacquer: give exactly one of "material" (material JSON) or "preset"')
-            self.material = lq.Material(props["material"] if has_m else {"preset": props["preset"]})
+            self.material = lq.Material(material_from_properties(lq, props))
             self.tint = props.get_texture("tint", 1.0) if "tint" in props else None
             # Flags from the core (lq_material_lobes), as the native plugin sets them.
             lobes = self.material.lobes()

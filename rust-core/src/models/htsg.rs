@@ -136,6 +136,7 @@ fn build(p: &Params) -> Result<Model, Error> {
         k: p.color("k"),
         diffuse: p.color("diffuse"),
         tolerance: p.scalar("series_tolerance"),
+        lambda_um: LAMBDA_RGB_UM,
     }))
 }
 
@@ -154,6 +155,9 @@ pub struct Htsg {
     pub diffuse: [f64; 3],
     /// Relative truncation bound of the series.
     pub tolerance: f64,
+    /// Wavelength (µm) of each channel: [`LAMBDA_RGB_UM`] for RGB; the spectral path
+    /// ([`crate::spectral`]) builds the model with three sampled wavelengths instead.
+    pub lambda_um: [f64; 3],
 }
 
 /// Result of [`series`]: the sum and the number of terms it took.
@@ -406,14 +410,14 @@ impl Htsg {
 
     /// Wave number `k = 2π/λ` of channel `c` (1/µm).
     #[inline]
-    fn wave_number(c: usize) -> f64 {
-        2.0 * PI / LAMBDA_RGB_UM[c]
+    fn wave_number(&self, c: usize) -> f64 {
+        2.0 * PI / self.lambda_um[c]
     }
 
     /// Phase variance `g` of the specular configuration for `cos θo`, per channel.
     fn specular_g(&self, co: f64) -> [f64; 3] {
         let sigma = self.effective_sigma(co, co);
-        [0, 1, 2].map(|c| (Self::wave_number(c) * sigma * 2.0 * co).powi(2))
+        [0, 1, 2].map(|c| (self.wave_number(c) * sigma * 2.0 * co).powi(2))
     }
 
     /// Reflectance of the specular Dirac lobe for `cos θo` (per channel).
@@ -441,7 +445,7 @@ impl Htsg {
         let mut out = [0.0; 3];
         let mut terms = 0;
         for (c, o) in out.iter_mut().enumerate() {
-            let k = Self::wave_number(c);
+            let k = self.wave_number(c);
             let kt2 = (k * self.tau).powi(2);
             let g = (k * sigma * w).powi(2);
             let s = series(g, 0.25 * kt2 * v2, self.tolerance);
@@ -473,7 +477,7 @@ impl Htsg {
 
     /// The sampling mixture of channel `c`'s directional-diffuse lobe in the `v_xy` plane.
     fn dd_mixture(&self, c: usize, g_o: f64) -> Option<GaussMixture> {
-        let k = Self::wave_number(c);
+        let k = self.wave_number(c);
         GaussMixture::poisson(g_o, 2.0 / (k * self.tau).powi(2), 0.0, false)
     }
 
@@ -644,7 +648,7 @@ mod tests {
     }
 
     fn model(sigma0: f64, tau: f64) -> Htsg {
-        Htsg { sigma0, tau, eta: AL_ETA, k: AL_K, diffuse: [0.0; 3], tolerance: 1e-10 }
+        Htsg { sigma0, tau, eta: AL_ETA, k: AL_K, diffuse: [0.0; 3], tolerance: 1e-10, lambda_um: LAMBDA_RGB_UM }
     }
 
     /// Brute-force sum of the series to convergence, term by term in log form.
@@ -790,7 +794,7 @@ mod tests {
     /// i.e. the series carries exactly the energy the specular lobe loses.
     #[test]
     fn specular_plus_directional_diffuse_keeps_the_fresnel_energy() {
-        let m = Htsg { sigma0: 0.08, tau: 4.0, eta: [1.5; 3], k: [0.0; 3], diffuse: [0.0; 3], tolerance: 1e-8 };
+        let m = Htsg { sigma0: 0.08, tau: 4.0, eta: [1.5; 3], k: [0.0; 3], diffuse: [0.0; 3], tolerance: 1e-8, lambda_um: LAMBDA_RGB_UM };
         let mat = Material::from_params(
             &INFO,
             Params::parse(

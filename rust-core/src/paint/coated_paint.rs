@@ -238,9 +238,31 @@ impl CoatedPaint {
     /// Builds the layer stack and its tables from validated parameters.
     #[must_use]
     pub fn new(p: &Params) -> Self {
+        Self::build(p, None)
+    }
+
+    /// The paint whose three channels are the wavelengths `lambda_nm` instead of R, G, B (the
+    /// spectral path, [`crate::spectral`]): the pearl film's Airy reflectance at each
+    /// wavelength instead of its RGB integral, colours upsampled with
+    /// [`crate::spectral::upsample`], the flakes' metal n, k interpolated between the RGB
+    /// channels' wavelengths ([`crate::spectral::rgb_channel_interpolate`]).
+    #[must_use]
+    pub fn at_wavelengths(p: &Params, lambda_nm: [f64; 3]) -> Self {
+        Self::build(p, Some(lambda_nm))
+    }
+
+    fn build(p: &Params, lambda_nm: Option<[f64; 3]>) -> Self {
+        use crate::spectral::{rgb_channel_interpolate, upsample};
+        let color = |name: &str| match lambda_nm {
+            None => p.color(name),
+            Some(l) => l.map(|x| upsample(p.color(name), x).max(0.0)),
+        };
+        let per_channel = |rgb: [f64; 3]| match lambda_nm {
+            None => rgb,
+            Some(l) => l.map(|x| rgb_channel_interpolate(rgb, x)),
+        };
         let eta = p.scalar("coat_ior");
-        let coat =
-            Coat::new(eta, p.scalar("coat_roughness"), p.scalar("coat_thickness_um"), p.color("coat_absorption"));
+        let coat = Coat::new(eta, p.scalar("coat_roughness"), p.scalar("coat_thickness_um"), color("coat_absorption"));
         let flake_c = p.scalar("flake_density") / 100.0;
         let pearl_c = p.scalar("pearl_density") / 100.0;
         let metallic = p.scalar("base_metallic");
@@ -251,7 +273,16 @@ impl CoatedPaint {
             medium_ior: eta,
         };
         let platelet = p.choice("pearl_structure") == "platelet";
-        let pearl_table = (pearl_c > 0.0).then(|| if platelet { film.platelet_table(64) } else { film.table(64) });
+        let pearl_table = (pearl_c > 0.0).then(|| match lambda_nm {
+            None if platelet => film.platelet_table(64),
+            None => film.table(64),
+            Some(l) => MuTable::build(64, |mu| {
+                l.map(|x| {
+                    let r = if platelet { film.platelet_reflectance(mu, x) } else { film.reflectance(mu, x) };
+                    r.clamp(0.0, 1.0)
+                })
+            }),
+        });
         let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
         let sparkle_layer = if p.boolean("sparkle") {
             Sparkle::new(
@@ -269,8 +300,8 @@ impl CoatedPaint {
             FlakeLayer {
                 alpha: flake_alpha,
                 metallic_coverage: flake_c,
-                metal_eta: metal.eta.map(|n| n / eta),
-                metal_k: metal.k.map(|k| k / eta),
+                metal_eta: per_channel(metal.eta).map(|n| n / eta),
+                metal_k: per_channel(metal.k).map(|k| k / eta),
                 pearl_coverage: pearl_c,
                 pearl_reflectance: pearl_table.clone(),
             }
@@ -278,13 +309,13 @@ impl CoatedPaint {
         let uncovered = (1.0 - flake_c - pearl_c).max(0.0);
         let metal = (metallic > 0.0).then(|| MetalBase {
             alpha: p.scalar("base_roughness"),
-            f0: p.color("base_color"),
+            f0: color("base_color"),
             weight: uncovered * metallic,
         });
         let pearl_transmission =
             pearl_table.map(|t| MuTable::build(t.values().len(), |mu| t.eval::<f64>(mu).map(|r| 1.0 - r)));
         let base = Basecoat::new(
-            p.color("base_color"),
+            color("base_color"),
             uncovered * (1.0 - metallic),
             pearl_c,
             pearl_transmission,
