@@ -65,21 +65,25 @@ pub(crate) const CHECK_PARAMS: &[&str] = &[
     r#"{"diffuse": 0.9, "specular": 0.1, "exponent": 0.5}"#,
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "phong",
-    summary: "Original Phong 1975: kd/π + ks (n+2)/(2π) cosⁿα / cosθi (not reciprocal, not energy conserving)",
-    reference: "B. T. Phong, Illumination for computer generated pictures, CACM 18(6) 1975; \
-                E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance model for \
-                physically based rendering, KU Leuven CW 197 (1994)",
-    params: PARAMS,
-    claims: Claims { reciprocal: false, energy_conserving: false, sampled: true },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::Phong(Phong { lobe: MirrorLobe::from_params(p) }))
+shared_lobe_model! {
+    /// The original (non-reciprocal) Phong BRDF.
+    pub struct Phong as Phong {
+        /// Parameters and sampler.
+        lobe: MirrorLobe
+    }
+    info: {
+        name: "phong",
+        summary: "Original Phong 1975: kd/π + ks (n+2)/(2π) cosⁿα / cosθi (not reciprocal, not energy conserving)",
+        reference: "B. T. Phong, Illumination for computer generated pictures, CACM 18(6) 1975; \
+                    E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance model for \
+                    physically based rendering, KU Leuven CW 197 (1994)",
+        params: PARAMS,
+        claims: Claims { reciprocal: false, energy_conserving: false, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| MirrorLobe::from_params(p);
+    eval: |_this, l, wi, wo| l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(cos_floor());
+    sampling: lobe_sampling!(lobe);
 }
 
 /// Rejects `diffuse + specular > 1` in any channel (with a little slack for rounding), naming
@@ -136,6 +140,14 @@ impl MirrorLobe {
         Self { diffuse: p.color("diffuse"), specular: p.color("specular"), exponent: p.scalar("exponent") }
     }
 
+    /// [`MirrorLobe::from_params`] with kd + ks ≤ 1 enforced ([`check_sum_at_most_one`]): the
+    /// energy-conserving members.
+    pub(crate) fn bounded_from_params(p: &Params) -> Result<Self, Error> {
+        let lobe = Self::from_params(p);
+        check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
+        Ok(lobe)
+    }
+
     /// `kd/π`.
     #[inline]
     pub(crate) fn diffuse_value<T: Real>(&self) -> Rgb<T> {
@@ -182,24 +194,13 @@ pub(crate) fn cos_floor<T: Real>() -> T {
     T::of(1e-30)
 }
 
-/// The original (non-reciprocal) Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct Phong {
-    /// Parameters and sampler.
-    pub lobe: MirrorLobe,
+/// Neumann et al.'s "stretch" `max(cos θi, cos θo)` (floored at [`cos_floor`]), which the
+/// stretched variants divide their specular lobe by.
+#[inline]
+pub(crate) fn stretch<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> T {
+    wi.z.max(wo.z).max(cos_floor())
 }
 
-impl Bxdf for Phong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobe;
-        l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(cos_floor())
-    }
-
-    lobe_sampling!(lobe);
-}
-
-/// Independent quadratures shared by the Phong-family tests.
 #[cfg(test)]
 pub(crate) mod testing {
     use crate::material::Material;
