@@ -41,7 +41,7 @@
 //! SIGGRAPH 1977; T. Akenine-Möller, E. Haines, *Real-Time Rendering*, 2nd ed., 2002 (the
 //! (n+8)/(8π) normalisation).
 
-use super::phong::{check_sum_at_most_one, mean, two_lobe_weights, MAX_EXPONENT};
+use super::phong::{PhongLobe, MAX_EXPONENT};
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::frame::{reflect, versine_z};
@@ -94,16 +94,12 @@ shared_lobe_model! {
     sampling: lobe_sampling!(lobe);
 }
 
-/// A half-vector (Blinn) lobe over a Lambertian term: parameters, lobe shape and sampler.
-#[derive(Clone, Debug)]
-pub struct HalfLobe {
-    /// Diffuse reflectance kd per channel.
-    pub diffuse: [f64; 3],
-    /// Specular coefficient ks per channel.
-    pub specular: [f64; 3],
-    /// Blinn exponent n.
-    pub exponent: f64,
-}
+/// The lobe around the normal in the half vector (Blinn's `cosⁿθh`).
+#[derive(Clone, Copy, Debug)]
+pub struct Half;
+
+/// A half-vector (Blinn) lobe over a Lambertian term.
+pub type HalfLobe = PhongLobe<Half>;
 
 /// Smallest `|wi + wo|` the Jacobian `1/(4 wo·h) = 1/(2|wi + wo|)` divides by.
 #[inline]
@@ -112,34 +108,11 @@ fn sum_floor<T: Real>() -> T {
 }
 
 impl HalfLobe {
-    /// Reads the family's parameters (no cross-checks).
-    pub(crate) fn from_params(p: &Params) -> Self {
-        Self { diffuse: p.color("diffuse"), specular: p.color("specular"), exponent: p.scalar("exponent") }
-    }
-
-    /// [`HalfLobe::from_params`] with kd + ks ≤ 1 enforced ([`check_sum_at_most_one`]).
-    pub(crate) fn bounded_from_params(p: &Params) -> Result<Self, Error> {
-        let lobe = Self::from_params(p);
-        check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
-        Ok(lobe)
-    }
-
-    /// `kd/π`.
-    #[inline]
-    pub(crate) fn diffuse_value<T: Real>(&self) -> Rgb<T> {
-        Rgb::from_array(self.diffuse) * T::inv_pi()
-    }
-
     /// `ks cosⁿθh` (zero when the half vector is undefined).
     #[inline]
     pub(crate) fn specular_power<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
         let lobe = cos_pow_versine(versine_z(wi + wo), T::of(self.exponent));
         Rgb::from_array(self.specular) * lobe
-    }
-
-    #[inline]
-    fn lobe_weights<T: Real>(&self) -> [T; 2] {
-        two_lobe_weights(mean(self.diffuse), mean(self.specular))
     }
 
     /// The mixture density `P_d cos θi/π + P_s (n+1)/(2π) cosⁿθh / (4 wo·h)`, with

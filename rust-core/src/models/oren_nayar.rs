@@ -165,8 +165,7 @@ mod tests {
 
     fn on(rho: f64, sigma: f64) -> OrenNayar {
         OrenNayar {
-            albedo: [rho; 3],
-            sigma,
+            facets: Facets { albedo: [rho; 3], sigma },
         }
     }
 

@@ -96,8 +96,7 @@ mod tests {
     #[test]
     fn zero_roughness_is_lambert() {
         let m = OrenNayarQualitative {
-            albedo: [0.3; 3],
-            sigma: 0.0,
+            facets: Facets { albedo: [0.3; 3], sigma: 0.0 },
         };
         let mut rng = Pcg32::new(5, 5);
         for _ in 0..1000 {
@@ -117,8 +116,7 @@ mod tests {
         let r = f64::to_radians;
         let want = rho / std::f64::consts::PI * (a + b * r(40.0).cos() * r(50.0).sin() * r(20.0).tan());
         let m = OrenNayarQualitative {
-            albedo: [rho; 3],
-            sigma,
+            facets: Facets { albedo: [rho; 3], sigma },
         };
         let f = m.eval(dir(r(50.0), 1.0), dir(r(20.0), 1.0 - r(40.0)));
         assert!((f.r - want).abs() < 1e-14, "{} vs {want}", f.r);
