@@ -464,9 +464,8 @@ pub fn index_matched_sets(info: &'static ModelInfo) -> Vec<Map<String, Value>> {
     if iors.len() > 1 {
         groups.push(iors.clone());
     }
-    let bases = std::iter::once(Map::new()).chain(
-        info.check_params.iter().map(|t| serde_json::from_str(t).expect("check_params are JSON objects")),
-    );
+    let bases = std::iter::once(Map::new())
+        .chain(info.check_params.iter().map(|t| serde_json::from_str(t).expect("check_params are JSON objects")));
     let mut sets = Vec::new();
     for base in bases {
         for group in &groups {
