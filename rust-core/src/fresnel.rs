@@ -116,9 +116,23 @@ pub fn f82_tint_b(f0: f64, tint: f64) -> f64 {
 /// One square root pair per channel instead of complex arithmetic; `a²` is taken as
 /// `2η²k²/(a²+b² − t)` when `t < 0`, which avoids the cancellation of `a²+b² + t` for metals
 /// (`k ≫ η`; in f32 it would cost ~3e-5 relative on gold).
+///
+/// At `η = 1, k = 0` (an index-matched interface: nothing reflects) the result is exactly 0.
+/// The formula gives 0 there only up to rounding: `t = 1 − sin²θ` is `cos²θ` with an absolute
+/// error of 1e-16, so `a²+b² + cos²θ − 2a cos θ` cancels to residues of either sign (F ≈ −1e-17
+/// and non-reciprocal once a microfacet lobe multiplies it by `D G / (4 cos θi cos θo)`), and
+/// at `cos θ = 0` it is 0/0 (NaN in f32 at grazing half vectors). `lacquer numerics`' index-matched
+/// sets found it in every model that uses this function (docs/numerics.md).
 #[inline(always)]
 #[must_use]
 pub fn conductor<T: Lanes>(cos_i: T, eta: T, k: T) -> T {
+    let matched = lanes::eq(eta, T::c(1.0)) & lanes::eq(k, T::c(0.0));
+    lanes::select(matched, T::c(0.0), conductor_formula(cos_i, eta, k))
+}
+
+/// [`conductor`] without the index-matched case.
+#[inline(always)]
+fn conductor_formula<T: Lanes>(cos_i: T, eta: T, k: T) -> T {
     let one = T::c(1.0);
     let c = lanes::clamp(cos_i, T::c(0.0), one);
     let c2 = c * c;
@@ -297,5 +311,20 @@ mod tests {
     fn schlick_endpoints() {
         assert_eq!(schlick(1.0f64, 0.04), 0.04);
         assert_eq!(schlick(0.0f64, 0.04), 1.0);
+    }
+
+    /// η = 1, k = 0 reflects nothing: exactly 0 at every angle, in f64 and f32 (the formula
+    /// gave ±1e-17 residues and 0/0 at cos θ = 0), and indices next to it are untouched.
+    #[test]
+    fn index_matched_conductor_is_exactly_zero() {
+        for i in 0..=1000 {
+            let c = f64::from(i) / 1000.0;
+            assert_eq!(conductor(c, 1.0, 0.0), 0.0, "cos {c}");
+            assert_eq!(conductor(c as f32, 1.0, 0.0), 0.0, "cos {c} (f32)");
+            for (eta, k) in [(1.0 + 1e-6, 0.0), (1.0, 1e-6), (1.5, 0.0)] {
+                assert_eq!(conductor(c, eta, k).to_bits(), conductor_formula(c, eta, k).to_bits());
+            }
+        }
+        assert_eq!(conductor(1e-30f32, 1.0, 0.0), 0.0);
     }
 }

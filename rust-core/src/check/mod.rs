@@ -49,7 +49,8 @@ pub struct CheckConfig {
     pub furnace_phi: Vec<f64>,
     /// Samples per outgoing direction in the furnace (two strategies each).
     pub furnace_samples: usize,
-    /// Largest albedo accepted from an energy-conserving model (beyond 3σ of MC noise).
+    /// Largest albedo accepted from an energy-conserving model: it fails when its albedo's
+    /// lower bound (mean − 4σ, σ from independent randomisations) exceeds 1 + this.
     pub furnace_tolerance: f64,
     /// `(cos θo, φo)` of the χ² tests.
     pub chi2_directions: Vec<(f64, f64)>,

@@ -1,7 +1,8 @@
 //! The adversarial numerics report (`lacquer numerics`): for every model and every preset,
 //! many adversarial direction pairs through `eval`, `pdf` and `sample` in f32 and f64, on the
 //! model's defaults, its check sets, every parameter (and pair of parameters) at its limits
-//! ([`super::extreme_parameter_sets`], the same sets as the hard cases) and values beyond the
+//! ([`super::extreme_parameter_sets`], the same sets as the hard cases), index-matched
+//! interfaces (every IOR at 1, [`index_matched_sets`]) and values beyond the
 //! declared ranges (which must be rejected). Counts NaN, Inf and negative outputs, and
 //! reciprocity violations of models that claim reciprocity.
 //!
@@ -438,6 +439,49 @@ fn out_of_range_sets(info: &'static ModelInfo) -> Vec<Map<String, Value>> {
     sets
 }
 
+/// Index-matched interfaces: each index-of-refraction parameter (`eta`, `…ior`) whose range
+/// holds 1 set to exactly 1 (and the extinction `k` to 0 where the model has one), alone and,
+/// when a model has several, all at once — on the defaults and on each check set (so that
+/// pure-specular sets, e.g. `kd = 0`, are among them). At η = 1 the Fresnel formulas give 0
+/// only up to rounding (`1 − sin²θt` cancels at grazing angles); a lobe that multiplies that
+/// residue by `D G / (4 cos θi cos θo)` turns it into non-reciprocal values (the coated-paint
+/// finding behind `Coat::has_interface`, docs/numerics.md). A set the model rejects
+/// (`rough_plastic` with equal indices) counts as rejected, not as a failure.
+#[must_use]
+pub fn index_matched_sets(info: &'static ModelInfo) -> Vec<Map<String, Value>> {
+    let iors: Vec<&str> = info
+        .params
+        .iter()
+        .filter(|s| matches!(s.kind, ParamKind::Scalar | ParamKind::Color))
+        .filter(|s| (s.name == "eta" || s.name.ends_with("ior")) && s.min <= 1.0 && 1.0 <= s.max)
+        .map(|s| s.name)
+        .collect();
+    if iors.is_empty() {
+        return Vec::new();
+    }
+    let has_k = info.params.iter().any(|s| s.name == "k" && s.min <= 0.0);
+    let mut groups: Vec<Vec<&str>> = iors.iter().map(|n| vec![*n]).collect();
+    if iors.len() > 1 {
+        groups.push(iors.clone());
+    }
+    let bases = std::iter::once(Map::new())
+        .chain(info.check_params.iter().map(|t| serde_json::from_str(t).expect("check_params are JSON objects")));
+    let mut sets = Vec::new();
+    for base in bases {
+        for group in &groups {
+            let mut o: Map<String, Value> = base.clone();
+            for n in group {
+                o.insert((*n).into(), Value::from(1.0));
+            }
+            if has_k {
+                o.insert("k".into(), Value::from(0.0));
+            }
+            sets.push(o);
+        }
+    }
+    sets
+}
+
 /// A material to exercise: how to build it (inside the worker) and its pair budget.
 enum Source {
     Defaults(&'static ModelInfo),
@@ -486,7 +530,7 @@ pub fn numerics(
             let obj: Map<String, Value> = serde_json::from_str(text).expect("check_params are JSON objects");
             sources.push((row, Source::Params(info, obj, false)));
         }
-        for obj in extreme_parameter_sets(info) {
+        for obj in extreme_parameter_sets(info).into_iter().chain(index_matched_sets(info)) {
             sources.push((row, Source::Params(info, obj, true)));
         }
         let oor = out_of_range_sets(info);
@@ -631,5 +675,39 @@ mod tests {
         let s = (1.0 - c * c).sqrt();
         let f = m.eval(Vec3::new(s, 0.0, c), Vec3::new(-0.6, 0.0, 0.8));
         assert!(f.is_finite() && f.min_channel() >= 0.0, "{f:?}");
+    }
+
+    /// Index-matched interfaces (every IOR at exactly 1, `k` = 0, on the defaults and each
+    /// check set: [`index_matched_sets`]) through the report's adversarial pairs: no NaN, Inf,
+    /// negative value or claimed-reciprocity violation. At η = 1 the Fresnel residues of
+    /// rounding (1e-16 relative) must not reach a lobe that amplifies them.
+    #[test]
+    fn index_matched_interfaces_are_clean() {
+        let cfg = NumericsConfig::smoke();
+        let mut built = 0;
+        let mut bad = Vec::new();
+        for info in crate::models::all() {
+            for (k, obj) in index_matched_sets(info).iter().enumerate() {
+                let Ok(m) = super::super::build(info, obj) else { continue };
+                built += 1;
+                let r = run_item(&m, 4000, cfg.seed, 0x1_0000 + k as u64, cfg.reciprocity_tolerance);
+                let recip = if info.claims.reciprocal { r.reciprocity_violations } else { 0 };
+                if r.f64.failures() + r.f32.failures() + recip > 0 {
+                    bad.push(format!(
+                        "{} {}: {} f64, {} f32 failures, {recip} reciprocity violations (worst {:.2e}) {:?}",
+                        info.name,
+                        Value::Object(obj.clone()),
+                        r.f64.failures(),
+                        r.f32.failures(),
+                        r.worst_reciprocity,
+                        r.examples
+                    ));
+                }
+            }
+        }
+        // cook_torrance, cook_torrance_1981, htsg, principled, rough_conductor, rough_plastic,
+        // stam, torrance_sparrow and coated_paint have an IOR whose range holds 1.
+        assert!(built >= 20, "only {built} index-matched sets built");
+        assert!(bad.is_empty(), "{}", bad.join("\n"));
     }
 }

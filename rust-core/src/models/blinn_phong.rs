@@ -41,7 +41,7 @@
 //! SIGGRAPH 1977; T. Akenine-Möller, E. Haines, *Real-Time Rendering*, 2nd ed., 2002 (the
 //! (n+8)/(8π) normalisation).
 
-use super::phong::{mean, two_lobe_weights, MAX_EXPONENT};
+use super::phong::{PhongLobe, MAX_EXPONENT};
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::frame::{reflect, versine_z};
@@ -67,36 +67,39 @@ const PARAMS: &[ParamSpec] = &[
     ),
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "blinn_phong",
-    summary: "Blinn-Phong 1977 with the (n+8)/(8π) normalisation: kd/π + ks (n+8)/(8π) cosⁿθh",
-    reference: "J. F. Blinn, Models of light reflection for computer synthesized pictures, SIGGRAPH 1977; \
-                T. Akenine-Möller, E. Haines, Real-Time Rendering 2nd ed. (2002)",
-    params: PARAMS,
-    claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
-    check_params: &[
-        r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 10.0}"#,
-        r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 1000.0}"#,
-        r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 1.0}"#,
-    ],
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::BlinnPhong(BlinnPhong { lobe: HalfLobe::from_params(p) }))
+shared_lobe_model! {
+    /// The normalised Blinn-Phong BRDF.
+    pub struct BlinnPhong as BlinnPhong {
+        /// Parameters and sampler.
+        lobe: HalfLobe
+    }
+    info: {
+        name: "blinn_phong",
+        summary: "Blinn-Phong 1977 with the (n+8)/(8π) normalisation: kd/π + ks (n+8)/(8π) cosⁿθh",
+        reference: "J. F. Blinn, Models of light reflection for computer synthesized pictures, SIGGRAPH 1977; \
+                    T. Akenine-Möller, E. Haines, Real-Time Rendering 2nd ed. (2002)",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
+        check_params: &[
+            r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 10.0}"#,
+            r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 1000.0}"#,
+            r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 1.0}"#,
+        ],
+    }
+    build: |p| HalfLobe::from_params(p);
+    eval: |_this, l, wi, wo| {
+        let norm = (T::of(l.exponent) + T::of(8.0)) * T::inv_pi() / T::of(8.0);
+        l.diffuse_value() + l.specular_power(wi, wo) * norm
+    };
+    sampling: lobe_sampling!(lobe);
 }
 
-/// A half-vector (Blinn) lobe over a Lambertian term: parameters, lobe shape and sampler.
-#[derive(Clone, Debug)]
-pub struct HalfLobe {
-    /// Diffuse reflectance kd per channel.
-    pub diffuse: [f64; 3],
-    /// Specular coefficient ks per channel.
-    pub specular: [f64; 3],
-    /// Blinn exponent n.
-    pub exponent: f64,
-}
+/// The lobe around the normal in the half vector (Blinn's `cosⁿθh`).
+#[derive(Clone, Copy, Debug)]
+pub struct Half;
+
+/// A half-vector (Blinn) lobe over a Lambertian term.
+pub type HalfLobe = PhongLobe<Half>;
 
 /// Smallest `|wi + wo|` the Jacobian `1/(4 wo·h) = 1/(2|wi + wo|)` divides by.
 #[inline]
@@ -105,27 +108,11 @@ fn sum_floor<T: Real>() -> T {
 }
 
 impl HalfLobe {
-    /// Reads the family's parameters (no cross-checks).
-    pub(crate) fn from_params(p: &Params) -> Self {
-        Self { diffuse: p.color("diffuse"), specular: p.color("specular"), exponent: p.scalar("exponent") }
-    }
-
-    /// `kd/π`.
-    #[inline]
-    pub(crate) fn diffuse_value<T: Real>(&self) -> Rgb<T> {
-        Rgb::from_array(self.diffuse) * T::inv_pi()
-    }
-
     /// `ks cosⁿθh` (zero when the half vector is undefined).
     #[inline]
     pub(crate) fn specular_power<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
         let lobe = cos_pow_versine(versine_z(wi + wo), T::of(self.exponent));
         Rgb::from_array(self.specular) * lobe
-    }
-
-    #[inline]
-    fn lobe_weights<T: Real>(&self) -> [T; 2] {
-        two_lobe_weights(mean(self.diffuse), mean(self.specular))
     }
 
     /// The mixture density `P_d cos θi/π + P_s (n+1)/(2π) cosⁿθh / (4 wo·h)`, with
@@ -156,24 +143,6 @@ impl HalfLobe {
         };
         (wi.z > T::zero() && wi.is_finite()).then_some(wi)
     }
-}
-
-/// The normalised Blinn-Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct BlinnPhong {
-    /// Parameters and sampler.
-    pub lobe: HalfLobe,
-}
-
-impl Bxdf for BlinnPhong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobe;
-        let norm = (T::of(l.exponent) + T::of(8.0)) * T::inv_pi() / T::of(8.0);
-        l.diffuse_value() + l.specular_power(wi, wo) * norm
-    }
-
-    lobe_sampling!(lobe);
 }
 
 /// Golden values shared with the stretched variant's tests.

@@ -79,6 +79,18 @@ const PARAMS: &[ParamSpec] = &[
     ),
 ];
 
+/// Rejects `kd + ks > 1` (with slack for rounding), naming `ks`; `note` follows "exceed 1".
+/// Shared with [`super::cook_torrance_1981`].
+pub(crate) fn check_kd_plus_ks(kd: f64, ks: f64, note: &str) -> Result<(), Error> {
+    if kd + ks > 1.0 + 1e-12 {
+        return Err(Error::Invalid {
+            param: "ks".into(),
+            reason: format!("kd + ks must not exceed 1{note}, got {kd} + {ks}"),
+        });
+    }
+    Ok(())
+}
+
 /// Registry entry.
 pub static INFO: ModelInfo = ModelInfo {
     name: "cook_torrance",
@@ -100,12 +112,7 @@ pub static INFO: ModelInfo = ModelInfo {
 
 fn build(p: &Params) -> Result<Model, Error> {
     let (kd, ks) = (p.scalar("kd"), p.scalar("ks"));
-    if kd + ks > 1.0 + 1e-12 {
-        return Err(Error::Invalid {
-            param: "ks".into(),
-            reason: format!("kd + ks must not exceed 1, got {kd} + {ks}"),
-        });
-    }
+    check_kd_plus_ks(kd, ks, "")?;
     let distribution = DistributionKind::from_name(p.choice("distribution"))
         .expect("choices are validated against the spec");
     let masking =

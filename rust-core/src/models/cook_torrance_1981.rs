@@ -33,6 +33,7 @@
 //! Reference: R. L. Cook and K. E. Torrance, "A Reflectance Model for Computer Graphics",
 //! Computer Graphics (SIGGRAPH '81) 15(3), 307-316, 1981.
 
+use super::cook_torrance::check_kd_plus_ks;
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::fresnel::conductor_rgb;
@@ -72,12 +73,7 @@ pub static INFO: ModelInfo = ModelInfo {
 
 fn build(p: &Params) -> Result<Model, Error> {
     let (kd, ks) = (p.scalar("kd"), p.scalar("ks"));
-    if kd + ks > 1.0 + 1e-12 {
-        return Err(Error::Invalid {
-            param: "ks".into(),
-            reason: format!("kd + ks must not exceed 1 (the paper's d + s = 1), got {kd} + {ks}"),
-        });
-    }
+    check_kd_plus_ks(kd, ks, " (the paper's d + s = 1)")?;
     Ok(Model::CookTorrance1981(CookTorrance1981 {
         kd,
         albedo: p.color("albedo"),

@@ -28,6 +28,49 @@ macro_rules! lobe_sampling {
     };
 }
 
+/// A model that is one shared parameter/lobe type plus its own `eval`: writes the registry
+/// entry `INFO` (from the given fields plus `build`), `build`, the model struct (one public
+/// field holding the shared type) and its [`Bxdf`] impl, whose `pdf` and `sample` come from the
+/// given sampling macro (`lobe_sampling!` or `cosine_sampling!`). The Ward family
+/// (`WardLobes`), the Phong family (`MirrorLobe`, `HalfLobe`) and the Oren-Nayar models
+/// (`Facets`) use it, so each of their files holds only its documentation, its normalisation
+/// and its tests. In `eval: |this, l, wi, wo| …`, `this` is the model and `l` its field.
+macro_rules! shared_lobe_model {
+    (
+        $(#[$doc:meta])*
+        pub struct $ty:ident as $variant:ident { $(#[$fdoc:meta])* $field:ident: $lobe:ty }
+        info: { $($info:tt)* }
+        build: |$p:ident| $build:expr;
+        eval: |$this:ident, $l:ident, $wi:ident, $wo:ident| $eval:expr;
+        sampling: $sampling:ident!($($sargs:tt)*);
+    ) => {
+        /// Registry entry.
+        pub static INFO: ModelInfo = ModelInfo { $($info)* build };
+
+        fn build($p: &Params) -> Result<Model, Error> {
+            Ok(Model::$variant($ty { $field: $build }))
+        }
+
+        $(#[$doc])*
+        #[derive(Clone, Debug)]
+        pub struct $ty {
+            $(#[$fdoc])*
+            pub $field: $lobe,
+        }
+
+        impl Bxdf for $ty {
+            #[inline]
+            fn eval<T: Real>(&self, $wi: Vec3<T>, $wo: Vec3<T>) -> Rgb<T> {
+                let $this = self;
+                let $l = &$this.$field;
+                $eval
+            }
+
+            $sampling!($($sargs)*);
+        }
+    };
+}
+
 /// The `pdf` and `sample` of a [`Bxdf`] sampled from the cosine lobe (the Oren-Nayar models:
 /// perturbed Lambertian lobes); the sample's value is the model's own `eval`.
 macro_rules! cosine_sampling {

@@ -26,7 +26,7 @@
 //! Forum 13(2), 1994; E. P. Lafortune, Y. D. Willems, "Using the modified Phong reflectance
 //! model for physically based rendering", KU Leuven CW 197, 1994.
 
-use super::phong::{check_sum_at_most_one, MirrorLobe, CHECK_PARAMS, PARAMS};
+use super::phong::{MirrorLobe, CHECK_PARAMS, PARAMS};
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
@@ -34,39 +34,25 @@ use crate::models::Model;
 use crate::params::Params;
 use crate::real::Real;
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "modified_phong",
-    summary: "Modified Phong (Lewis; Lafortune & Willems 1994): kd/π + ks (n+2)/(2π) cosⁿα",
-    reference: "R. R. Lewis, Making shaders more physically plausible, Computer Graphics Forum \
-                13(2) 1994; E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance \
-                model for physically based rendering, KU Leuven CW 197 (1994)",
-    params: PARAMS,
-    claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    let lobe = MirrorLobe::from_params(p);
-    check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
-    Ok(Model::ModifiedPhong(ModifiedPhong { lobe }))
-}
-
-/// The modified (reciprocal, normalised) Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct ModifiedPhong {
-    /// Parameters and sampler.
-    pub lobe: MirrorLobe,
-}
-
-impl Bxdf for ModifiedPhong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.lobe.diffuse_value() + self.lobe.normalised_lobe(wi, wo)
+shared_lobe_model! {
+    /// The modified (reciprocal, normalised) Phong BRDF.
+    pub struct ModifiedPhong as ModifiedPhong {
+        /// Parameters and sampler.
+        lobe: MirrorLobe
     }
-
-    lobe_sampling!(lobe);
+    info: {
+        name: "modified_phong",
+        summary: "Modified Phong (Lewis; Lafortune & Willems 1994): kd/π + ks (n+2)/(2π) cosⁿα",
+        reference: "R. R. Lewis, Making shaders more physically plausible, Computer Graphics Forum \
+                    13(2) 1994; E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance \
+                    model for physically based rendering, KU Leuven CW 197 (1994)",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| MirrorLobe::bounded_from_params(p)?;
+    eval: |_this, l, wi, wo| l.diffuse_value() + l.normalised_lobe(wi, wo);
+    sampling: lobe_sampling!(lobe);
 }
 
 #[cfg(test)]

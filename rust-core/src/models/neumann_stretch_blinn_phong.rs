@@ -36,7 +36,7 @@
 //! models", Computer Graphics Forum 18(3) (Eurographics 1999), 161–172.
 
 use super::blinn_phong::HalfLobe;
-use super::phong::{check_sum_at_most_one, cos_floor, MAX_EXPONENT};
+use super::phong::{stretch, MAX_EXPONENT};
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
@@ -50,44 +50,31 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec::scalar("exponent", 100.0, 0.0, MAX_EXPONENT, "", "Blinn exponent n on cos θh"),
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "neumann_stretch_blinn_phong",
-    summary: "Neumann et al. 1999 stretched Blinn-Phong: kd/π + ks (n+2)/(8π) cosⁿθh / max(cosθi, cosθo)",
-    reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance models, \
-                Computer Graphics Forum 18(3) 1999",
-    params: PARAMS,
-    claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
-    check_params: &[
-        r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 1.0}"#,
-        r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 1000.0}"#,
-        r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 20.0}"#,
-    ],
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    let lobe = HalfLobe::from_params(p);
-    check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
-    Ok(Model::NeumannStretchBlinnPhong(NeumannStretchBlinnPhong { lobe }))
-}
-
-/// The stretched Blinn-Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct NeumannStretchBlinnPhong {
-    /// Parameters and sampler.
-    pub lobe: HalfLobe,
-}
-
-impl Bxdf for NeumannStretchBlinnPhong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobe;
-        let norm = (T::of(l.exponent) + T::of(2.0)) * T::inv_pi() / T::of(8.0);
-        l.diffuse_value() + l.specular_power(wi, wo) * (norm / wi.z.max(wo.z).max(cos_floor()))
+shared_lobe_model! {
+    /// The stretched Blinn-Phong BRDF.
+    pub struct NeumannStretchBlinnPhong as NeumannStretchBlinnPhong {
+        /// Parameters and sampler.
+        lobe: HalfLobe
     }
-
-    lobe_sampling!(lobe);
+    info: {
+        name: "neumann_stretch_blinn_phong",
+        summary: "Neumann et al. 1999 stretched Blinn-Phong: kd/π + ks (n+2)/(8π) cosⁿθh / max(cosθi, cosθo)",
+        reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance models, \
+                    Computer Graphics Forum 18(3) 1999",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
+        check_params: &[
+            r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 1.0}"#,
+            r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 1000.0}"#,
+            r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 20.0}"#,
+        ],
+    }
+    build: |p| HalfLobe::bounded_from_params(p)?;
+    eval: |_this, l, wi, wo| {
+        let norm = (T::of(l.exponent) + T::of(2.0)) * T::inv_pi() / T::of(8.0);
+        l.diffuse_value() + l.specular_power(wi, wo) * (norm / stretch(wi, wo))
+    };
+    sampling: lobe_sampling!(lobe);
 }
 
 #[cfg(test)]

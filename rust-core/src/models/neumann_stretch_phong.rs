@@ -33,7 +33,7 @@
 //! Reference: L. Neumann, A. Neumann, L. Szirmay-Kalos, "Compact metallic reflectance
 //! models", Computer Graphics Forum 18(3) (Eurographics 1999), 161–172.
 
-use super::phong::{check_sum_at_most_one, cos_floor, MirrorLobe, MAX_EXPONENT};
+use super::phong::{stretch, MirrorLobe, MAX_EXPONENT};
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
@@ -47,43 +47,28 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec::scalar("exponent", 30.0, 2.0, MAX_EXPONENT, "", "Phong exponent n (shininess)"),
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "neumann_stretch_phong",
-    summary: "Neumann et al. 1999 stretched (metallic) Phong: kd/π + ks (n+2)/(2π) cosⁿα / max(cosθi, cosθo)",
-    reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance models, \
-                Computer Graphics Forum 18(3) 1999",
-    params: PARAMS,
-    claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
-    check_params: &[
-        r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 2.0}"#,
-        r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 200.0}"#,
-        r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 8.0}"#,
-    ],
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    let lobe = MirrorLobe::from_params(p);
-    check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
-    Ok(Model::NeumannStretchPhong(NeumannStretchPhong { lobe }))
-}
-
-/// The stretched Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct NeumannStretchPhong {
-    /// Parameters and sampler.
-    pub lobe: MirrorLobe,
-}
-
-impl Bxdf for NeumannStretchPhong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobe;
-        l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(wo.z).max(cos_floor())
+shared_lobe_model! {
+    /// The stretched Phong BRDF.
+    pub struct NeumannStretchPhong as NeumannStretchPhong {
+        /// Parameters and sampler.
+        lobe: MirrorLobe
     }
-
-    lobe_sampling!(lobe);
+    info: {
+        name: "neumann_stretch_phong",
+        summary: "Neumann et al. 1999 stretched (metallic) Phong: kd/π + ks (n+2)/(2π) cosⁿα / max(cosθi, cosθo)",
+        reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance models, \
+                    Computer Graphics Forum 18(3) 1999",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
+        check_params: &[
+            r#"{"diffuse": 0.0, "specular": 1.0, "exponent": 2.0}"#,
+            r#"{"diffuse": [0.6, 0.3, 0.1], "specular": [0.3, 0.5, 0.8], "exponent": 200.0}"#,
+            r#"{"diffuse": 0.2, "specular": 0.8, "exponent": 8.0}"#,
+        ],
+    }
+    build: |p| MirrorLobe::bounded_from_params(p)?;
+    eval: |_this, l, wi, wo| l.diffuse_value() + l.normalised_lobe(wi, wo) / stretch(wi, wo);
+    sampling: lobe_sampling!(lobe);
 }
 
 #[cfg(test)]

@@ -57,38 +57,46 @@ const PARAMS: &[ParamSpec] = &[
     ),
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "oren_nayar",
-    summary: "Oren-Nayar 1994 rough diffuse, full model (C1, C2, C3 and inter-reflection)",
-    reference: "M. Oren, S. K. Nayar, Generalization of Lambert's Reflectance Model, SIGGRAPH 1994",
-    params: PARAMS,
-    claims: Claims {
-        reciprocal: true,
-        energy_conserving: false,
-        sampled: true,
-    },
-    check_params: &[
-        r#"{"albedo": 1.0, "sigma": 0.3}"#,
-        r#"{"albedo": [0.9, 0.4, 0.1], "sigma": 0.65}"#,
-    ],
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::OrenNayar(OrenNayar {
-        albedo: p.color("albedo"),
-        sigma: p.scalar("sigma"),
-    }))
+shared_lobe_model! {
+    /// The full Oren-Nayar BRDF.
+    pub struct OrenNayar as OrenNayar {
+        /// Facet albedo and roughness.
+        facets: Facets
+    }
+    info: {
+        name: "oren_nayar",
+        summary: "Oren-Nayar 1994 rough diffuse, full model (C1, C2, C3 and inter-reflection)",
+        reference: "M. Oren, S. K. Nayar, Generalization of Lambert's Reflectance Model, SIGGRAPH 1994",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
+        check_params: &[
+            r#"{"albedo": 1.0, "sigma": 0.3}"#,
+            r#"{"albedo": [0.9, 0.4, 0.1], "sigma": 0.65}"#,
+        ],
+    }
+    build: |p| Facets::from_params(p);
+    eval: |this, l, wi, wo| {
+        let (direct, inter) = this.brackets(wi, wo);
+        let rho = Rgb::from_array(l.albedo);
+        (rho * direct + rho * rho * inter) * T::inv_pi()
+    };
+    sampling: cosine_sampling!();
 }
 
-/// The full Oren-Nayar BRDF.
+/// The parameters of both Oren-Nayar models.
 #[derive(Clone, Debug)]
-pub struct OrenNayar {
+pub struct Facets {
     /// Facet albedo ρ per channel.
     pub albedo: [f64; 3],
     /// Standard deviation of the facet slope angle, radians.
     pub sigma: f64,
+}
+
+impl Facets {
+    /// Reads `albedo` and `sigma`.
+    pub(crate) fn from_params(p: &Params) -> Self {
+        Self { albedo: p.color("albedo"), sigma: p.scalar("sigma") }
+    }
 }
 
 /// The angles and azimuth term shared by both Oren-Nayar models, from the two directions:
@@ -116,7 +124,7 @@ impl OrenNayar {
     /// The direct (`L1`) bracket and the inter-reflection (`L2`) bracket, both without `ρ/π`.
     #[inline]
     fn brackets<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> (T, T) {
-        let s2 = T::of(self.sigma * self.sigma);
+        let s2 = T::of(self.facets.sigma * self.facets.sigma);
         let (sin_a, cos_a, sin_b, cos_b, cos_dphi) = angles(wi, wo);
         // Angles from atan2 of (sin, cos): accurate near the pole in f32, unlike acos.
         let alpha = sin_a.atan2(cos_a);
@@ -147,17 +155,6 @@ impl OrenNayar {
     }
 }
 
-impl Bxdf for OrenNayar {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let (direct, inter) = self.brackets(wi, wo);
-        let rho = Rgb::from_array(self.albedo);
-        (rho * direct + rho * rho * inter) * T::inv_pi()
-    }
-
-    cosine_sampling!();
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -168,8 +165,7 @@ mod tests {
 
     fn on(rho: f64, sigma: f64) -> OrenNayar {
         OrenNayar {
-            albedo: [rho; 3],
-            sigma,
+            facets: Facets { albedo: [rho; 3], sigma },
         }
     }
 

@@ -28,7 +28,7 @@
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
 use crate::math::{Rgb, Vec3};
-use crate::models::oren_nayar::angles;
+use crate::models::oren_nayar::{angles, Facets};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
@@ -46,60 +46,39 @@ const PARAMS: &[ParamSpec] = &[
     ),
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "oren_nayar_qualitative",
-    summary: "Oren-Nayar 1994 rough diffuse, qualitative model A + B max(0, cos Δφ) sin α tan β",
-    reference: "M. Oren, S. K. Nayar, Generalization of Lambert's Reflectance Model, SIGGRAPH 1994",
-    params: PARAMS,
-    claims: Claims {
-        reciprocal: true,
-        energy_conserving: false,
-        sampled: true,
-    },
-    check_params: &[
-        r#"{"albedo": 1.0, "sigma": 0.2}"#,
-        r#"{"albedo": [0.9, 0.4, 0.1], "sigma": 1.2}"#,
-    ],
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::OrenNayarQualitative(OrenNayarQualitative {
-        albedo: p.color("albedo"),
-        sigma: p.scalar("sigma"),
-    }))
-}
-
-/// The qualitative Oren-Nayar BRDF.
-#[derive(Clone, Debug)]
-pub struct OrenNayarQualitative {
-    /// Facet albedo ρ per channel.
-    pub albedo: [f64; 3],
-    /// Standard deviation of the facet slope angle, radians.
-    pub sigma: f64,
+shared_lobe_model! {
+    /// The qualitative Oren-Nayar BRDF.
+    pub struct OrenNayarQualitative as OrenNayarQualitative {
+        /// Facet albedo and roughness.
+        facets: Facets
+    }
+    info: {
+        name: "oren_nayar_qualitative",
+        summary: "Oren-Nayar 1994 rough diffuse, qualitative model A + B max(0, cos Δφ) sin α tan β",
+        reference: "M. Oren, S. K. Nayar, Generalization of Lambert's Reflectance Model, SIGGRAPH 1994",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
+        check_params: &[
+            r#"{"albedo": 1.0, "sigma": 0.2}"#,
+            r#"{"albedo": [0.9, 0.4, 0.1], "sigma": 1.2}"#,
+        ],
+    }
+    build: |p| Facets::from_params(p);
+    eval: |this, l, wi, wo| Rgb::from_array(l.albedo) * (this.factor(wi, wo) * T::inv_pi());
+    sampling: cosine_sampling!();
 }
 
 impl OrenNayarQualitative {
     /// `A + B max(0, cos Δφ) sin α tan β`.
     #[inline]
     fn factor<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let s2 = T::of(self.sigma * self.sigma);
+        let s2 = T::of(self.facets.sigma * self.facets.sigma);
         let a = T::one() - T::of(0.5) * s2 / (s2 + T::of(0.33));
         let b = T::of(0.45) * s2 / (s2 + T::of(0.09));
         let (sin_a, _, sin_b, cos_b, cos_dphi) = angles(wi, wo);
         let tan_b = sin_b / cos_b.max(T::min_positive_value());
         a + b * cos_dphi.max(T::zero()) * sin_a * tan_b
     }
-}
-
-impl Bxdf for OrenNayarQualitative {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        Rgb::from_array(self.albedo) * (self.factor(wi, wo) * T::inv_pi())
-    }
-
-    cosine_sampling!();
 }
 
 #[cfg(test)]
@@ -117,8 +96,7 @@ mod tests {
     #[test]
     fn zero_roughness_is_lambert() {
         let m = OrenNayarQualitative {
-            albedo: [0.3; 3],
-            sigma: 0.0,
+            facets: Facets { albedo: [0.3; 3], sigma: 0.0 },
         };
         let mut rng = Pcg32::new(5, 5);
         for _ in 0..1000 {
@@ -138,8 +116,7 @@ mod tests {
         let r = f64::to_radians;
         let want = rho / std::f64::consts::PI * (a + b * r(40.0).cos() * r(50.0).sin() * r(20.0).tan());
         let m = OrenNayarQualitative {
-            albedo: [rho; 3],
-            sigma,
+            facets: Facets { albedo: [rho; 3], sigma },
         };
         let f = m.eval(dir(r(50.0), 1.0), dir(r(20.0), 1.0 - r(40.0)));
         assert!((f.r - want).abs() < 1e-14, "{} vs {want}", f.r);

@@ -42,6 +42,7 @@ use crate::math::{Rgb, Vec3};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
 use crate::real::Real;
+use std::marker::PhantomData;
 use crate::sampling::{
     cos_pow_versine, cosine_hemisphere, cosine_hemisphere_pdf, pick_lobe, power_cosine_around,
     power_cosine_pdf_versine,
@@ -65,21 +66,25 @@ pub(crate) const CHECK_PARAMS: &[&str] = &[
     r#"{"diffuse": 0.9, "specular": 0.1, "exponent": 0.5}"#,
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "phong",
-    summary: "Original Phong 1975: kd/π + ks (n+2)/(2π) cosⁿα / cosθi (not reciprocal, not energy conserving)",
-    reference: "B. T. Phong, Illumination for computer generated pictures, CACM 18(6) 1975; \
-                E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance model for \
-                physically based rendering, KU Leuven CW 197 (1994)",
-    params: PARAMS,
-    claims: Claims { reciprocal: false, energy_conserving: false, sampled: true },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::Phong(Phong { lobe: MirrorLobe::from_params(p) }))
+shared_lobe_model! {
+    /// The original (non-reciprocal) Phong BRDF.
+    pub struct Phong as Phong {
+        /// Parameters and sampler.
+        lobe: MirrorLobe
+    }
+    info: {
+        name: "phong",
+        summary: "Original Phong 1975: kd/π + ks (n+2)/(2π) cosⁿα / cosθi (not reciprocal, not energy conserving)",
+        reference: "B. T. Phong, Illumination for computer generated pictures, CACM 18(6) 1975; \
+                    E. P. Lafortune, Y. D. Willems, Using the modified Phong reflectance model for \
+                    physically based rendering, KU Leuven CW 197 (1994)",
+        params: PARAMS,
+        claims: Claims { reciprocal: false, energy_conserving: false, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| MirrorLobe::from_params(p);
+    eval: |_this, l, wi, wo| l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(cos_floor());
+    sampling: lobe_sampling!(lobe);
 }
 
 /// Rejects `diffuse + specular > 1` in any channel (with a little slack for rounding), naming
@@ -119,21 +124,44 @@ pub(crate) fn two_lobe_weights<T: Real>(d: f64, s: f64) -> [T; 2] {
     }
 }
 
-/// A reflection-vector Phong lobe over a Lambertian term: parameters, lobe shape and sampler.
+/// A Phong-family lobe over a Lambertian term: the parameters kd, ks, n, what both lobe shapes
+/// compute from them, and (per shape, see [`MirrorLobe`] and
+/// [`super::blinn_phong::HalfLobe`]) the lobe and its sampler.
 #[derive(Clone, Debug)]
-pub struct MirrorLobe {
+pub struct PhongLobe<S> {
     /// Diffuse reflectance kd per channel.
     pub diffuse: [f64; 3],
     /// Specular coefficient ks per channel.
     pub specular: [f64; 3],
-    /// Phong exponent n.
+    /// Phong (or Blinn) exponent n.
     pub exponent: f64,
+    shape: PhantomData<S>,
 }
 
-impl MirrorLobe {
+/// The lobe around the mirror direction (Phong's `cosⁿα`).
+#[derive(Clone, Copy, Debug)]
+pub struct Mirror;
+
+/// A reflection-vector Phong lobe over a Lambertian term.
+pub type MirrorLobe = PhongLobe<Mirror>;
+
+impl<S> PhongLobe<S> {
     /// Reads the family's parameters (no cross-checks).
     pub(crate) fn from_params(p: &Params) -> Self {
-        Self { diffuse: p.color("diffuse"), specular: p.color("specular"), exponent: p.scalar("exponent") }
+        Self {
+            diffuse: p.color("diffuse"),
+            specular: p.color("specular"),
+            exponent: p.scalar("exponent"),
+            shape: PhantomData,
+        }
+    }
+
+    /// [`PhongLobe::from_params`] with kd + ks ≤ 1 enforced ([`check_sum_at_most_one`]): the
+    /// energy-conserving members.
+    pub(crate) fn bounded_from_params(p: &Params) -> Result<Self, Error> {
+        let lobe = Self::from_params(p);
+        check_sum_at_most_one(lobe.diffuse, lobe.specular, "so that the albedo stays at most 1")?;
+        Ok(lobe)
     }
 
     /// `kd/π`.
@@ -142,17 +170,20 @@ impl MirrorLobe {
         Rgb::from_array(self.diffuse) * T::inv_pi()
     }
 
+    /// Selection probabilities `[diffuse, specular]` of the samplers: the channel means.
+    #[inline]
+    pub(crate) fn lobe_weights<T: Real>(&self) -> [T; 2] {
+        two_lobe_weights(mean(self.diffuse), mean(self.specular))
+    }
+}
+
+impl MirrorLobe {
     /// `ks (n+2)/(2π) cosⁿα`: the modified-Phong specular value.
     #[inline]
     pub(crate) fn normalised_lobe<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
         let n = T::of(self.exponent);
         let lobe = cos_pow_versine(versine_between(wi, mirror_z(wo)), n);
         Rgb::from_array(self.specular) * ((n + T::of(2.0)) * T::inv_pi() * T::of(0.5) * lobe)
-    }
-
-    #[inline]
-    fn lobe_weights<T: Real>(&self) -> [T; 2] {
-        two_lobe_weights(mean(self.diffuse), mean(self.specular))
     }
 
     /// The mixture density `P_d cos θi/π + P_s (n+1)/(2π) cosⁿα`.
@@ -182,24 +213,13 @@ pub(crate) fn cos_floor<T: Real>() -> T {
     T::of(1e-30)
 }
 
-/// The original (non-reciprocal) Phong BRDF.
-#[derive(Clone, Debug)]
-pub struct Phong {
-    /// Parameters and sampler.
-    pub lobe: MirrorLobe,
+/// Neumann et al.'s "stretch" `max(cos θi, cos θo)` (floored at [`cos_floor`]), which the
+/// stretched variants divide their specular lobe by.
+#[inline]
+pub(crate) fn stretch<T: Real>(wi: Vec3<T>, wo: Vec3<T>) -> T {
+    wi.z.max(wo.z).max(cos_floor())
 }
 
-impl Bxdf for Phong {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobe;
-        l.diffuse_value() + l.normalised_lobe(wi, wo) / wi.z.max(cos_floor())
-    }
-
-    lobe_sampling!(lobe);
-}
-
-/// Independent quadratures shared by the Phong-family tests.
 #[cfg(test)]
 pub(crate) mod testing {
     use crate::material::Material;

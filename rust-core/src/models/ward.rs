@@ -89,26 +89,24 @@ pub(crate) const CHECK_PARAMS: &[&str] = &[
     r#"{"diffuse": 0.1, "specular": 0.9, "alpha_x": 1.0, "alpha_y": 0.6}"#,
 ];
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "ward",
-    summary: "Ward 1992 anisotropic Gaussian gloss, 1/√(cosθi cosθo) normalisation, + Lambert",
-    reference: "G. J. Ward, Measuring and modeling anisotropic reflection, SIGGRAPH 1992; \
-                B. Walter, Notes on the Ward BRDF, Cornell PCG-05-06 (2005)",
-    params: PARAMS,
-    claims: Claims {
-        reciprocal: true,
-        energy_conserving: false,
-        sampled: true,
-    },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::Ward(Ward {
-        lobes: WardLobes::from_params(p)?,
-    }))
+shared_lobe_model! {
+    /// Ward's original BRDF (isotropic and anisotropic).
+    pub struct Ward as Ward {
+        /// Reflectances and roughness.
+        lobes: WardLobes
+    }
+    info: {
+        name: "ward",
+        summary: "Ward 1992 anisotropic Gaussian gloss, 1/√(cosθi cosθo) normalisation, + Lambert",
+        reference: "G. J. Ward, Measuring and modeling anisotropic reflection, SIGGRAPH 1992; \
+                    B. Walter, Notes on the Ward BRDF, Cornell PCG-05-06 (2005)",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| WardLobes::from_params(p)?;
+    eval: |_this, l, wi, wo| l.value(wi + wo, T::of(4.0) * T::PI() * l.alpha_xy::<T>() * (wi.z * wo.z).sqrt());
+    sampling: lobe_sampling!(lobes);
 }
 
 /// What the Ward family shares: reflectances, roughness, the exponent and the sampler.
@@ -194,6 +192,13 @@ impl WardLobes {
         }
     }
 
+    /// The family's BRDF `ρd/π + ρs exp(−exponent)/denominator` for the unnormalised half
+    /// vector `h = wi + wo`: each variant supplies only its normalisation `denominator`.
+    #[inline]
+    pub(crate) fn value<T: Real>(&self, h: Vec3<T>, denominator: T) -> Rgb<T> {
+        self.diffuse_value() + self.specular_albedo() * self.gaussian_over(h, denominator)
+    }
+
     /// The half-vector distribution Ward's sampler draws from (anisotropic Beckmann).
     #[inline]
     fn distribution<T: Real>(&self) -> Microfacet<T> {
@@ -248,25 +253,6 @@ impl WardLobes {
         };
         (wi.z > T::zero() && wi.is_finite()).then_some(wi)
     }
-}
-
-/// Ward's original BRDF (isotropic and anisotropic).
-#[derive(Clone, Debug)]
-pub struct Ward {
-    /// Reflectances and roughness.
-    pub lobes: WardLobes,
-}
-
-impl Bxdf for Ward {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobes;
-        let denominator = T::of(4.0) * T::PI() * l.alpha_xy::<T>() * (wi.z * wo.z).sqrt();
-        let spec = l.gaussian_over(wi + wo, denominator);
-        l.diffuse_value() + l.specular_albedo() * spec
-    }
-
-    lobe_sampling!(lobes);
 }
 
 /// Helpers shared by the Ward-family tests: independent quadratures of the golden values.

@@ -35,45 +35,24 @@ use crate::models::Model;
 use crate::params::Params;
 use crate::real::Real;
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "ward_duer",
-    summary: "Ward gloss with Dür's 1/(cosθi cosθo) normalisation, + Lambert",
-    reference: "A. Dür, An improved normalization for the Ward reflectance model, \
-                JGT 11(1) 2006",
-    params: PARAMS,
-    claims: Claims {
-        reciprocal: true,
-        energy_conserving: false,
-        sampled: true,
-    },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::WardDuer(WardDuer {
-        lobes: WardLobes::from_params(p)?,
-    }))
-}
-
-/// Ward's BRDF with Dür's normalisation.
-#[derive(Clone, Debug)]
-pub struct WardDuer {
-    /// Reflectances and roughness.
-    pub lobes: WardLobes,
-}
-
-impl Bxdf for WardDuer {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobes;
-        let denominator = T::of(4.0) * T::PI() * l.alpha_xy::<T>() * wi.z * wo.z;
-        let spec = l.gaussian_over(wi + wo, denominator);
-        l.diffuse_value() + l.specular_albedo() * spec
+shared_lobe_model! {
+    /// Ward's BRDF with Dür's normalisation.
+    pub struct WardDuer as WardDuer {
+        /// Reflectances and roughness.
+        lobes: WardLobes
     }
-
-    lobe_sampling!(lobes);
+    info: {
+        name: "ward_duer",
+        summary: "Ward gloss with Dür's 1/(cosθi cosθo) normalisation, + Lambert",
+        reference: "A. Dür, An improved normalization for the Ward reflectance model, \
+                    JGT 11(1) 2006",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: false, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| WardLobes::from_params(p)?;
+    eval: |_this, l, wi, wo| l.value(wi + wo, T::of(4.0) * T::PI() * l.alpha_xy::<T>() * wi.z * wo.z);
+    sampling: lobe_sampling!(lobes);
 }
 
 #[cfg(test)]

@@ -38,45 +38,24 @@ use crate::models::Model;
 use crate::params::Params;
 use crate::real::Real;
 
-/// Registry entry.
-pub static INFO: ModelInfo = ModelInfo {
-    name: "ward_neumann",
-    summary: "Ward gloss with Neumann's 1/max(cosθi, cosθo) normalisation, + Lambert",
-    reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance \
-                models, Computer Graphics Forum 18(3) 1999",
-    params: PARAMS,
-    claims: Claims {
-        reciprocal: true,
-        energy_conserving: true,
-        sampled: true,
-    },
-    check_params: CHECK_PARAMS,
-    build,
-};
-
-fn build(p: &Params) -> Result<Model, Error> {
-    Ok(Model::WardNeumann(WardNeumann {
-        lobes: WardLobes::from_params(p)?,
-    }))
-}
-
-/// Ward's BRDF with Neumann's `max(cosθi, cosθo)` normalisation.
-#[derive(Clone, Debug)]
-pub struct WardNeumann {
-    /// Reflectances and roughness.
-    pub lobes: WardLobes,
-}
-
-impl Bxdf for WardNeumann {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let l = &self.lobes;
-        let denominator = T::of(4.0) * T::PI() * l.alpha_xy::<T>() * wi.z.max(wo.z);
-        let spec = l.gaussian_over(wi + wo, denominator);
-        l.diffuse_value() + l.specular_albedo() * spec
+shared_lobe_model! {
+    /// Ward's BRDF with Neumann's `max(cosθi, cosθo)` normalisation.
+    pub struct WardNeumann as WardNeumann {
+        /// Reflectances and roughness.
+        lobes: WardLobes
     }
-
-    lobe_sampling!(lobes);
+    info: {
+        name: "ward_neumann",
+        summary: "Ward gloss with Neumann's 1/max(cosθi, cosθo) normalisation, + Lambert",
+        reference: "L. Neumann, A. Neumann, L. Szirmay-Kalos, Compact metallic reflectance \
+                    models, Computer Graphics Forum 18(3) 1999",
+        params: PARAMS,
+        claims: Claims { reciprocal: true, energy_conserving: true, sampled: true },
+        check_params: CHECK_PARAMS,
+    }
+    build: |p| WardLobes::from_params(p)?;
+    eval: |_this, l, wi, wo| l.value(wi + wo, T::of(4.0) * T::PI() * l.alpha_xy::<T>() * wi.z.max(wo.z));
+    sampling: lobe_sampling!(lobes);
 }
 
 #[cfg(test)]
