@@ -17,10 +17,10 @@
 //!   and are not read for validation.
 
 use crate::bxdf::{LaneSample, SurfacePoint};
+use crate::frame::HORIZON_COS;
 use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
-use crate::frame::HORIZON_COS;
 use crate::models::{above_or_up, checked_sample, KernelVisitor, LaneKernel, Model};
 use crate::paint::varying::{Element, PaintTexture, VaryingPaint};
 use crate::real::Real;
@@ -1159,11 +1159,21 @@ impl VaryingArgs<'_, '_, f32> {
         #[cfg(target_arch = "x86_64")]
         {
             #[target_feature(enable = "avx2,fma")]
-            fn avx2(a: VaryingArgs<'_, '_, f32>, vp: &VaryingPaint, t: &PaintTexture<f32>, r: (usize, usize)) -> BatchReport {
+            fn avx2(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
                 a.run::<crate::lanes::x86::F32x8>(vp, t, r)
             }
             #[target_feature(enable = "avx512f")]
-            fn avx512(a: VaryingArgs<'_, '_, f32>, vp: &VaryingPaint, t: &PaintTexture<f32>, r: (usize, usize)) -> BatchReport {
+            fn avx512(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
                 a.run::<crate::lanes::x86::F32x16>(vp, t, r)
             }
             match simd_level() {
@@ -1181,10 +1191,7 @@ impl VaryingArgs<'_, '_, f32> {
 fn varying_for<'m, E>(m: &'m Material, tex: &PaintTexture<E>, n: usize) -> Result<&'m VaryingPaint, LayoutError> {
     check_len("texture", tex.min_len(), n)?;
     m.varying_paint(tex.coat_roughness.is_some()).ok_or_else(|| {
-        LayoutError(format!(
-            "per-element parameters need a coated_paint material, not {}",
-            m.info().name
-        ))
+        LayoutError(format!("per-element parameters need a coated_paint material, not {}", m.info().name))
     })
 }
 

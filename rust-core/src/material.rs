@@ -130,7 +130,11 @@ impl Material {
     pub fn varying_paint(&self, vary_alpha: bool) -> Option<&crate::paint::varying::VaryingPaint> {
         let Model::CoatedPaint(p) = &self.model else { return None };
         let cell = &self.varying[usize::from(vary_alpha)];
-        Some(cell.get_or_init(|| std::sync::Arc::new(crate::paint::varying::VaryingPaint::new(p, &self.params, vary_alpha))))
+        Some(
+            cell.get_or_init(|| {
+                std::sync::Arc::new(crate::paint::varying::VaryingPaint::new(p, &self.params, vary_alpha))
+            }),
+        )
     }
 
     /// Validated parameters, defaults included.

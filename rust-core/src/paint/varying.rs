@@ -206,7 +206,7 @@ pub struct VaryingPaint {
     /// Flakes: metallic coverage 1 (scaled per element), pearl coverage `c_p`.
     flakes: Option<FlakeLayer>,
     pearl_transmission: Option<MuTable>,
-    /// Mean normal reflectance of unit metallic flakes and of the pearl flakes.
+    /// Mean normal reflectance of unit-coverage metallic flakes and of the pearl flakes (at `c_p`).
     flake_nr: [f64; 2],
     /// `mean(T_p(1))²` (the pigment-through-pearl selection weight).
     pearl_t_sel: f64,
@@ -231,7 +231,10 @@ impl VaryingPaint {
         let eta = coat.ior;
         let alphas: Vec<f64> = if vary_alpha {
             let (s0, s1) = (ALPHA_MIN.sqrt(), ALPHA_MAX.sqrt());
-            (0..ALPHA_NODES).map(|j| s0 + (s1 - s0) * j as f64 / (ALPHA_NODES - 1) as f64).map(|s| s * s).collect()
+            (0..ALPHA_NODES)
+                .map(|j| s0 + (s1 - s0) * j as f64 / (ALPHA_NODES - 1) as f64)
+                .map(|s| (s * s).clamp(ALPHA_MIN, ALPHA_MAX))
+                .collect()
         } else {
             vec![coat.roughness]
         };
@@ -258,7 +261,8 @@ impl VaryingPaint {
         };
         let metal_alpha = p.scalar("base_roughness");
         let metal_with = |f0: f64| MetalBase { alpha: metal_alpha, f0: [f0; 3], weight: 1.0 };
-        let mut comps: Vec<(Kind, Basecoat)> = vec![(Kind::Pigment, Basecoat::new([1.0; 3], 1.0, 0.0, None, None, None))];
+        let mut comps: Vec<(Kind, Basecoat)> =
+            vec![(Kind::Pigment, Basecoat::new([1.0; 3], 1.0, 0.0, None, None, None))];
         if pearl_c > 0.0 {
             let t = base.pearl_transmission.clone();
             comps.push((Kind::PigmentPearl, Basecoat::new([1.0; 3], 0.0, 1.0, t, None, None)));
@@ -342,6 +346,40 @@ impl VaryingPaint {
         (self.material_rho, self.material_c, self.material_alpha)
     }
 
+    /// `A1(μ)` and `M(μ)` of one element (f64; a report or a test, as
+    /// `CoatedPaint::layer_albedos`).
+    #[must_use]
+    pub fn layer_albedos(&self, rho: [f64; 3], coverage: f64, alpha: f64, mu: f64) -> ([f64; 3], [f64; 3]) {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        (self.single(&e, mu), self.multiple(&e, mu))
+    }
+
+    /// The three terms of `f` for one element (f64; tests): top reflection, single-scatter
+    /// layer, multiple scatter (as `CoatedPaint::eval_terms`).
+    #[must_use]
+    pub fn eval_terms(&self, rho: [f64; 3], coverage: f64, alpha: f64, wi: Vec3<f64>, wo: Vec3<f64>) -> [Rgb<f64>; 3] {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        let (a, b) = (self.multiple(&e, wi.z), self.multiple(&e, wo.z));
+        let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
+        [Rgb::splat(self.top_eval(&e, wi, wo)), self.layer_term(&e, wi, wo), m]
+    }
+
+    /// The density of one element for given lobe-selection weights `s` (f64; tests: with a
+    /// material's own weights it must reproduce that material's `pdf`).
+    #[must_use]
+    pub fn pdf_with_selection(
+        &self,
+        rho: [f64; 3],
+        coverage: f64,
+        alpha: f64,
+        wi: Vec3<f64>,
+        wo: Vec3<f64>,
+        s: [f64; 3],
+    ) -> f64 {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        self.pdf_with(&e, wi, wo, s)
+    }
+
     /// Per lane: whether the raw parameters are valid (`rho`, flake density in %, α), for the
     /// ones given. Invalid lanes must not be evaluated (the caller substitutes the defaults).
     #[inline(always)]
@@ -368,7 +406,11 @@ impl VaryingPaint {
         let at = if self.varies_alpha() {
             let n = self.alpha_sqrt.len();
             let (s0, s1) = (self.alpha_sqrt[0], self.alpha_sqrt[n - 1]);
-            let x = lanes::clamp((lanes::sqrt(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)), zero, L::c((n - 1) as f64));
+            let x = lanes::clamp(
+                (lanes::sqrt(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
+                zero,
+                L::c((n - 1) as f64),
+            );
             let node = lanes::min(x.floor_(), L::c((n - 2) as f64));
             AlphaAt { node, t: x - node }
         } else {
@@ -400,25 +442,23 @@ impl VaryingPaint {
             for k in 0..nk {
                 rb += w[k][ch] * L::c(self.rho_bar[k][ch]);
                 ravg += w[k][ch]
-                    * self.alpha_lerp(&at, |node| self.r_avg.get(node * L::c((nk * 3) as f64) + L::c((k * 3 + ch) as f64)));
+                    * self.alpha_lerp(&at, |node| {
+                        self.r_avg.get(node * L::c((nk * 3) as f64) + L::c((k * 3 + ch) as f64))
+                    });
             }
             let r = L::c(self.tau[ch] * self.tau[ch]) * rb;
             let denom = one - r * (one - escape);
             let b = lanes::select(lanes::gt(denom, L::c(1e-12)), r * escape / denom, one);
             bounce[ch] = b;
             let mbar = b * ravg;
-            norm[ch] = lanes::select(
-                lanes::gt(mbar, L::c(1e-12)),
-                one / (L::c(std::f64::consts::PI) * mbar),
-                zero,
-            );
+            norm[ch] = lanes::select(lanes::gt(mbar, L::c(1e-12)), one / (L::c(std::f64::consts::PI) * mbar), zero);
         }
         // Basecoat lobe selection (as `Basecoat::new`, per element).
         let mean = |x: [L; 3]| (x[0] + x[1] + x[2]) / L::c(3.0);
         let rho_mean = mean(rho);
         let w_pig = rho_mean * (pigment_weight + cp * L::c(self.pearl_t_sel));
         let w_metal = if self.metal.is_some() { metal_weight * lanes::max(rho_mean, L::c(0.04)) } else { zero };
-        let w_flakes = c * L::c(self.flake_nr[0]) + cp * L::c(self.flake_nr[1]);
+        let w_flakes = c * L::c(self.flake_nr[0]) + L::c(self.flake_nr[1]);
         let total = lanes::max(w_pig + w_metal + w_flakes, L::c(1e-12));
         let floor = L::c(0.02) * total;
         let pig_present = lanes::gt(pigment_weight, zero) | lanes::gt(cp, zero);
@@ -755,6 +795,7 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> (Vec<(MuTable, MuTable)>
             rest[j].push([0, 1, 2].map(|c| u[c] - a1[c]));
         }
     }
-    let tables = single.into_iter().zip(rest).map(|(a, r)| (MuTable::from_values(a), MuTable::from_values(r))).collect();
+    let tables =
+        single.into_iter().zip(rest).map(|(a, r)| (MuTable::from_values(a), MuTable::from_values(r))).collect();
     (tables, rho_bar)
 }
