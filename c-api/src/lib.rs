@@ -26,6 +26,7 @@ pub mod material;
 pub mod render;
 pub mod status;
 pub mod strings;
+pub mod varying;
 
 pub use batch::*;
 pub use catalog::*;
@@ -35,6 +36,7 @@ pub use material::*;
 pub use render::*;
 pub use status::lq_status;
 pub use strings::*;
+pub use varying::*;
 
 use std::ffi::c_char;
 
@@ -42,7 +44,7 @@ use std::ffi::c_char;
 /// shared library's SONAME (`liblacquer.so.0`).
 pub const LQ_ABI_VERSION_MAJOR: u32 = 0;
 /// ABI minor version: incremented when functions or status codes are added.
-pub const LQ_ABI_VERSION_MINOR: u32 = 5;
+pub const LQ_ABI_VERSION_MINOR: u32 = 6;
 /// The ABI version this header describes: `(major << 16) | minor`. Compare with
 /// `lq_abi_version()` at run time: the majors must be equal and the library's minor at least
 /// the header's.

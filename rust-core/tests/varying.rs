@@ -471,3 +471,76 @@ fn no_texture_is_the_material_and_bad_inputs_are_errors() {
         batch::eval_pdf_varying(&lambert, &tex, &a, &b, None, Some(&Dst3::interleaved(&mut f2)), None).unwrap_err();
     assert!(err.0.contains("coated_paint"), "{err}");
 }
+
+/// Cost of per-element parameters against the untextured paint (docs/speed.md): ns per
+/// element of `eval_pdf` and `eval_pdf_varying` (f, pdf) at the detected SIMD level, one
+/// thread. Not a CI test: `cargo test --release -p lacquer --test varying -- --ignored --nocapture cost`.
+#[test]
+#[ignore]
+fn cost_against_the_untextured_paint() {
+    let _g = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
+    batch::set_thread_count(1);
+    let n = 1 << 16;
+    let dirs = directions(n, 2);
+    let wi: [Vec<f32>; 3] = [0, 1, 2].map(|c| dirs.iter().map(|d| [d.0.x, d.0.y, d.0.z][c] as f32).collect());
+    let wo: [Vec<f32>; 3] = [0, 1, 2].map(|c| dirs.iter().map(|d| [d.1.x, d.1.y, d.1.z.abs()][c] as f32).collect());
+    let t = texture(&elements(&[0.0015, 0.02, 0.07, 0.2, 0.43]), n);
+    let to32 = |v: &Vec<f64>| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let (r32, d32, a32) = (t.rgb.each_ref().map(to32), to32(&t.density), to32(&t.alpha));
+    let (a, b) = (Src3::soa(&wi[0], &wi[1], &wi[2]).unwrap(), Src3::soa(&wo[0], &wo[1], &wo[2]).unwrap());
+    let (mut f, mut p) = (vec![0.0f32; 3 * n], vec![0.0f32; n]);
+    for paint in [PAINTS[0], PAINTS[2]] {
+        let m = Material::from_json(paint).unwrap();
+        let t0 = std::time::Instant::now();
+        m.varying_paint(false);
+        let t1 = std::time::Instant::now();
+        m.varying_paint(true);
+        eprintln!(
+            "{paint}\n  tables: {:.0} ms (fixed α), {:.0} ms (α grid)",
+            (t1 - t0).as_secs_f64() * 1e3,
+            t1.elapsed().as_secs_f64() * 1e3
+        );
+        let cases: [(&str, PaintTexture<f32>); 4] = [
+            ("untextured (eval_pdf)", PaintTexture::default()),
+            (
+                "base_color",
+                PaintTexture { base_color: Some([&r32[0][..], &r32[1][..], &r32[2][..]]), ..Default::default() },
+            ),
+            (
+                "base_color + flake_density",
+                PaintTexture {
+                    base_color: Some([&r32[0][..], &r32[1][..], &r32[2][..]]),
+                    flake_density: Some(&d32[..]),
+                    coat_roughness: None,
+                },
+            ),
+            (
+                "all three",
+                PaintTexture {
+                    base_color: Some([&r32[0][..], &r32[1][..], &r32[2][..]]),
+                    flake_density: Some(&d32[..]),
+                    coat_roughness: Some(&a32[..]),
+                },
+            ),
+        ];
+        for (name, tex) in cases {
+            let mut best = f64::MAX;
+            for _ in 0..5 {
+                let s = std::time::Instant::now();
+                batch::eval_pdf_varying(
+                    &m,
+                    &tex,
+                    &a,
+                    &b,
+                    None,
+                    Some(&Dst3::interleaved(&mut f)),
+                    Some(&Dst1::new(&mut p)),
+                )
+                .unwrap();
+                best = best.min(s.elapsed().as_secs_f64() * 1e9 / n as f64);
+            }
+            eprintln!("  {:?} {name}: {best:.1} ns/element", batch::simd_level());
+        }
+    }
+    batch::set_thread_count(0);
+}
