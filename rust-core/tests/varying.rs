@@ -492,9 +492,9 @@ fn cost_against_the_untextured_paint() {
     for paint in [PAINTS[0], PAINTS[2]] {
         let m = Material::from_json(paint).unwrap();
         let t0 = std::time::Instant::now();
-        m.varying_paint(false);
+        let _ = m.varying_paint(false);
         let t1 = std::time::Instant::now();
-        m.varying_paint(true);
+        let _ = m.varying_paint(true);
         eprintln!(
             "{paint}\n  tables: {:.0} ms (fixed α), {:.0} ms (α grid)",
             (t1 - t0).as_secs_f64() * 1e3,

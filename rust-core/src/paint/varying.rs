@@ -322,7 +322,7 @@ impl VaryingPaint {
             rho_bar,
             pearl_c,
             metallic,
-            metal: (metallic > 0.0).then(|| MetalBase { alpha: metal_alpha, f0: [1.0; 3], weight: 1.0 }),
+            metal: (metallic > 0.0).then_some(MetalBase { alpha: metal_alpha, f0: [1.0; 3], weight: 1.0 }),
             flakes: Some(flakes_possible),
             pearl_transmission,
             flake_nr,
@@ -439,9 +439,9 @@ impl VaryingPaint {
         let mut norm = [zero; 3];
         for ch in 0..3 {
             let (mut rb, mut ravg) = (zero, zero);
-            for k in 0..nk {
-                rb += w[k][ch] * L::c(self.rho_bar[k][ch]);
-                ravg += w[k][ch]
+            for (k, wk) in w.iter().enumerate().take(nk) {
+                rb += wk[ch] * L::c(self.rho_bar[k][ch]);
+                ravg += wk[ch]
                     * self.alpha_lerp(&at, |node| {
                         self.r_avg.get(node * L::c((nk * 3) as f64) + L::c((k * 3 + ch) as f64))
                     });
@@ -751,10 +751,10 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> (Vec<(MuTable, MuTable)>
     let coat = &coats[0];
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
     let mut rho_bar = [0.0; 3];
-    for k in 0..n {
+    for (k, point) in points.iter().enumerate() {
         let v = super::hammersley3((k * 7919) % n, n);
         let w = cosine_hemisphere(v[1], v[2]);
-        if let Some(s) = base.sample(w, points[k]) {
+        if let Some(s) = base.sample(w, *point) {
             for (c, r) in rho_bar.iter_mut().enumerate() {
                 *r += s.weight[c] / n as f64;
             }
