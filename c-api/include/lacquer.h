@@ -1111,6 +1111,74 @@ void lq_image_free(lq_image *img);
  */
 void lq_string_free(char *s);
 
+/**
+ * `lq_eval_pdf_soa` with per-element paint parameters of a `coated_paint` material: element i
+ * is evaluated as the material with `base_color = (base_color_r[i], base_color_g[i],
+ * base_color_b[i])` (each in [0, 1]), `flake_density = flake_density[i]` (%, [0, 100], with
+ * the material's pearl_density at most 100 %) and `coat_roughness = coat_roughness[i]` (GGX
+ * α in [0.001, 0.5]). Each parameter array is NULL (the material's value) or n floats; the
+ * three colour arrays are all NULL or all given. The mean lobe is evaluated (no sparkle).
+ * `f_*` or `pdf` may be NULL (not computed) but not both. An element with an out-of-range or
+ * non-finite parameter gets zero outputs, the others are computed, and the call returns
+ * `LQ_ERR_INVALID_ELEMENT` naming the first such element and its values. With every parameter
+ * array NULL this is `lq_eval_pdf_soa`. Another model with a parameter array given:
+ * `LQ_ERR_INVALID_ARGUMENT`.
+ *
+ * # Safety
+ * As `lq_eval_pdf_soa`; every non-NULL parameter array holds n floats.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_varying(const lq_material *m,
+                              size_t n,
+                              const float *wi_x,
+                              const float *wi_y,
+                              const float *wi_z,
+                              const float *wo_x,
+                              const float *wo_y,
+                              const float *wo_z,
+                              const float *base_color_r,
+                              const float *base_color_g,
+                              const float *base_color_b,
+                              const float *flake_density,
+                              const float *coat_roughness,
+                              const uint8_t *active,
+                              float *f_r,
+                              float *f_g,
+                              float *f_b,
+                              float *pdf);
+
+/**
+ * `lq_sample_soa` with per-element paint parameters (as `lq_eval_pdf_varying`): element i is
+ * sampled as the material with element i's parameters (mean lobe). Invalid parameters: zero
+ * outputs, flags `LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT`, status `LQ_ERR_INVALID_ELEMENT`.
+ *
+ * # Safety
+ * As `lq_sample_soa`; every non-NULL parameter array holds n floats.
+ */
+LQ_MUST_USE
+lq_status lq_sample_varying(const lq_material *m,
+                            size_t n,
+                            const float *wo_x,
+                            const float *wo_y,
+                            const float *wo_z,
+                            const float *u0,
+                            const float *u1,
+                            const float *u2,
+                            const float *base_color_r,
+                            const float *base_color_g,
+                            const float *base_color_b,
+                            const float *flake_density,
+                            const float *coat_roughness,
+                            const uint8_t *active,
+                            float *wi_x,
+                            float *wi_y,
+                            float *wi_z,
+                            float *w_r,
+                            float *w_g,
+                            float *w_b,
+                            float *pdf,
+                            uint32_t *flags);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

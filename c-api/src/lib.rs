@@ -26,6 +26,7 @@ pub mod material;
 pub mod render;
 pub mod status;
 pub mod strings;
+pub mod varying;
 
 pub use batch::*;
 pub use catalog::*;
@@ -35,6 +36,7 @@ pub use material::*;
 pub use render::*;
 pub use status::lq_status;
 pub use strings::*;
+pub use varying::*;
 
 use std::ffi::c_char;
 

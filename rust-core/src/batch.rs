@@ -17,10 +17,12 @@
 //!   and are not read for validation.
 
 use crate::bxdf::{LaneSample, SurfacePoint};
+use crate::frame::HORIZON_COS;
 use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
-use crate::models::{KernelVisitor, LaneKernel, Model};
+use crate::models::{above_or_up, checked_sample, KernelVisitor, LaneKernel, Model};
+use crate::paint::varying::{Element, PaintTexture, VaryingPaint};
 use crate::real::Real;
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -354,13 +356,18 @@ pub struct BatchReport {
     pub invalid_u: usize,
     /// The first such element.
     pub first_invalid_u: Option<usize>,
+    /// Elements whose per-element paint parameters were out of range or not finite (the
+    /// `*_varying` calls; outputs set to zero).
+    pub invalid_params: usize,
+    /// The first such element.
+    pub first_invalid_param: Option<usize>,
 }
 
 impl BatchReport {
     /// True when every active element was valid.
     #[must_use]
     pub fn ok(&self) -> bool {
-        self.invalid_directions == 0 && self.invalid_u == 0
+        self.invalid_directions == 0 && self.invalid_u == 0 && self.invalid_params == 0
     }
     fn merge(self, o: Self) -> Self {
         let first = |a: Option<usize>, b: Option<usize>| match (a, b) {
@@ -372,6 +379,8 @@ impl BatchReport {
             first_invalid_direction: first(self.first_invalid_direction, o.first_invalid_direction),
             invalid_u: self.invalid_u + o.invalid_u,
             first_invalid_u: first(self.first_invalid_u, o.first_invalid_u),
+            invalid_params: self.invalid_params + o.invalid_params,
+            first_invalid_param: first(self.first_invalid_param, o.first_invalid_param),
         }
     }
     #[cold]
@@ -385,6 +394,14 @@ impl BatchReport {
                 self.invalid_u += 1;
                 self.first_invalid_u.get_or_insert(start + j);
             }
+        }
+    }
+    #[cold]
+    #[inline(never)]
+    fn record_params<M: Mask>(&mut self, start: usize, width: usize, bad: M) {
+        for j in (0..width).filter(|&j| bad.lane(j)) {
+            self.invalid_params += 1;
+            self.first_invalid_param.get_or_insert(start + j);
         }
     }
 }
@@ -957,4 +974,296 @@ pub fn eval_pdf_f64(
         }
     }
     Ok(run(n, |s, e| m.model().visit_kernel(F64 { wi, wo, active, f, pdf, range: (s, e) })))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Per-element paint parameters (textures): `eval_pdf_varying`, `sample_varying`.
+
+/// One lane batch of per-element parameters: the element's closed forms, and the lanes whose
+/// given parameters are valid (the others are evaluated with the material's values and zeroed).
+///
+/// # Safety
+/// `start + width` ≤ the length of every slice in `tex`.
+#[inline(always)]
+unsafe fn load_element<L: Lanes>(
+    vp: &VaryingPaint,
+    tex: &PaintTexture<L::Elem>,
+    start: usize,
+    width: usize,
+) -> (Element<L>, L::Mask) {
+    let (rho0, c0, a0) = vp.defaults();
+    let of = <L::Elem as Real>::of;
+    // SAFETY: the caller guarantees the slices hold start + width values.
+    let load = |s: &[L::Elem], pad: f64| unsafe { load_comp::<L>(s.as_ptr(), 1, start, width, of(pad)) };
+    let rho = tex.base_color.map(|c| [load(c[0], rho0[0]), load(c[1], rho0[1]), load(c[2], rho0[2])]);
+    let density = tex.flake_density.map(|d| load(d, 100.0 * c0));
+    let alpha = tex.coat_roughness.map(|a| load(a, a0));
+    let ok = vp.valid(rho, density, alpha);
+    let rho = match rho {
+        Some(r) => [0, 1, 2].map(|c| lanes::select(ok, r[c], L::c(rho0[c]))),
+        None => rho0.map(L::c),
+    };
+    let c = density.map_or(L::c(c0), |d| lanes::select(ok, d * L::c(0.01), L::c(c0)));
+    let alpha = alpha.map_or(L::c(a0), |a| lanes::select(ok, a, L::c(if vp.varies_alpha() { 0.1 } else { a0 })));
+    (vp.element(rho, c, alpha), ok)
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn eval_pdf_varying_kernel<L: Lanes>(
+    vp: &VaryingPaint,
+    tex: &PaintTexture<L::Elem>,
+    range: (usize, usize),
+    wi: &Src3<L::Elem>,
+    wo: &Src3<L::Elem>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<L::Elem>>,
+    pdf: Option<&Dst1<L::Elem>>,
+) -> BatchReport {
+    let mut report = BatchReport::default();
+    let mut start = range.0;
+    while start < range.1 {
+        let width = L::WIDTH.min(range.1 - start);
+        let on = active_lanes::<L>(active, start, width);
+        // SAFETY: start + width ≤ n for every view and texture (checked by the public functions).
+        let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
+        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+        let (e, p_ok) = unsafe { load_element::<L>(vp, tex, start, width) };
+        let ok = a_ok & o_ok;
+        if !(ok | !on).all() {
+            report.record(start, width, on & !ok, L::Mask::splat(false));
+        }
+        if !(p_ok | !on | !ok).all() {
+            report.record_params(start, width, on & ok & !p_ok);
+        }
+        let keep = on & ok & p_ok;
+        let above = lanes::gt(a.z, L::c(HORIZON_COS)) & lanes::gt(o.z, L::c(HORIZON_COS));
+        let (a, o) = (above_or_up(above, a), above_or_up(above, o));
+        if let Some(f) = f {
+            let v = Rgb::select(keep & above, vp.eval_lanes(&e, a, o), Rgb::zero());
+            unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
+        }
+        if let Some(pdf) = pdf {
+            let v = lanes::keep(keep & above, vp.pdf_lanes(&e, a, o));
+            unsafe { store1(pdf, start, width, v) };
+        }
+        start += width;
+    }
+    report
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn sample_varying_kernel<L: Lanes>(
+    vp: &VaryingPaint,
+    tex: &PaintTexture<L::Elem>,
+    range: (usize, usize),
+    wo: &Src3<L::Elem>,
+    u: &Src3<L::Elem>,
+    active: Option<&[u8]>,
+    out: &SampleOut<L::Elem>,
+    flags: Option<*mut u32>,
+) -> BatchReport {
+    let mut report = BatchReport::default();
+    let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
+    let mut start = range.0;
+    while start < range.1 {
+        let width = L::WIDTH.min(range.1 - start);
+        let on = active_lanes::<L>(active, start, width);
+        // SAFETY: as in eval_pdf_varying_kernel.
+        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+        let uu = unsafe { load3::<L>(u, start, width, [0.5; 3]) };
+        let (e, p_ok) = unsafe { load_element::<L>(vp, tex, start, width) };
+        let u_ok = lanes::is_finite(uu.x) & lanes::is_finite(uu.y) & lanes::is_finite(uu.z);
+        if !((o_ok & u_ok) | !on).all() {
+            report.record(start, width, on & !o_ok, on & !u_ok);
+        }
+        if !(p_ok | !on | !(o_ok & u_ok)).all() {
+            report.record_params(start, width, on & o_ok & u_ok & !p_ok);
+        }
+        let (lo, hi) = (L::c(0.0), L::splat(below_one));
+        let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
+        let above = lanes::gt(o.z, L::c(HORIZON_COS));
+        let s = checked_sample(vp.sample_lanes(&e, above_or_up(above, o), uc), above);
+        let inputs_ok = on & o_ok & u_ok & p_ok;
+        let good = inputs_ok & s.valid;
+        let wi = Vec3::select(good, s.wi, Vec3::zero());
+        let weight = Rgb::select(good, s.weight, Rgb::zero());
+        unsafe {
+            store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
+            store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
+            store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
+        }
+        if let Some(fl) = flags {
+            for j in 0..width {
+                let v = if !on.lane(j) {
+                    0
+                } else if !inputs_ok.lane(j) {
+                    SAMPLE_FAILED | SAMPLE_INVALID_INPUT
+                } else if !good.lane(j) {
+                    SAMPLE_FAILED
+                } else if s.delta.lane(j) {
+                    SAMPLE_DELTA
+                } else {
+                    0
+                };
+                // SAFETY: the flags slice holds n values (checked by `sample_varying`).
+                unsafe { *fl.add(start + j) = v };
+            }
+        }
+        start += width;
+    }
+    report
+}
+
+/// The arguments of one varying call, so the per-level kernels have one signature.
+#[derive(Clone, Copy)]
+enum VaryingArgs<'v, 'a, E> {
+    EvalPdf {
+        wi: &'v Src3<'a, E>,
+        wo: &'v Src3<'a, E>,
+        active: Option<&'a [u8]>,
+        f: Option<&'v Dst3<'a, E>>,
+        pdf: Option<&'v Dst1<'a, E>>,
+    },
+    Sample {
+        wo: &'v Src3<'a, E>,
+        u: &'v Src3<'a, E>,
+        active: Option<&'a [u8]>,
+        out: &'v SampleOut<'a, E>,
+        flags: Option<*mut u32>,
+    },
+}
+
+// SAFETY: as `Args`.
+unsafe impl<E: Sync> Send for VaryingArgs<'_, '_, E> {}
+unsafe impl<E: Sync> Sync for VaryingArgs<'_, '_, E> {}
+
+impl<E: Real> VaryingArgs<'_, '_, E> {
+    #[inline(always)]
+    fn run<L: Lanes<Elem = E>>(self, vp: &VaryingPaint, tex: &PaintTexture<E>, range: (usize, usize)) -> BatchReport {
+        match self {
+            VaryingArgs::EvalPdf { wi, wo, active, f, pdf } => {
+                eval_pdf_varying_kernel::<L>(vp, tex, range, wi, wo, active, f, pdf)
+            }
+            VaryingArgs::Sample { wo, u, active, out, flags } => {
+                sample_varying_kernel::<L>(vp, tex, range, wo, u, active, out, flags)
+            }
+        }
+    }
+}
+
+impl VaryingArgs<'_, '_, f32> {
+    /// Runs the kernel for `range` at the selected instruction set.
+    fn dispatch(self, vp: &VaryingPaint, tex: &PaintTexture<f32>, range: (usize, usize)) -> BatchReport {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
+                a.run::<crate::lanes::x86::F32x8>(vp, t, r)
+            }
+            #[target_feature(enable = "avx512f")]
+            fn avx512(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
+                a.run::<crate::lanes::x86::F32x16>(vp, t, r)
+            }
+            match simd_level() {
+                // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
+                SimdLevel::Avx512 => return unsafe { avx512(self, vp, tex, range) },
+                SimdLevel::Avx2 => return unsafe { avx2(self, vp, tex, range) },
+                SimdLevel::Scalar => {}
+            }
+        }
+        self.run::<f32>(vp, tex, range)
+    }
+}
+
+/// The material's per-component tables for `tex`, after checking the model and the lengths.
+fn varying_for<'m, E>(m: &'m Material, tex: &PaintTexture<E>, n: usize) -> Result<&'m VaryingPaint, LayoutError> {
+    check_len("texture", tex.min_len(), n)?;
+    m.varying_paint(tex.coat_roughness.is_some()).ok_or_else(|| {
+        LayoutError(format!("per-element parameters need a coated_paint material, not {}", m.info().name))
+    })
+}
+
+/// [`eval_pdf`] with per-element paint parameters (`tex`; see [`crate::paint::varying`]):
+/// element `i` is evaluated as the material with `tex`'s values at `i` (the mean lobe: no
+/// sparkle). Elements with out-of-range or non-finite parameters get zero outputs and are
+/// counted in [`BatchReport::invalid_params`]. With no texture this is [`eval_pdf`]; a
+/// texture on a model other than `coated_paint` is an error.
+#[allow(clippy::too_many_arguments)]
+pub fn eval_pdf_varying(
+    m: &Material,
+    tex: &PaintTexture<f32>,
+    wi: &Src3<f32>,
+    wo: &Src3<f32>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f32>>,
+    pdf: Option<&Dst1<f32>>,
+) -> Result<BatchReport, LayoutError> {
+    if tex.is_empty() {
+        return eval_pdf(m, wi, wo, active, f, pdf);
+    }
+    let n = wi.n;
+    check_views(n, &[("wo", wo.n), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
+    let vp = varying_for(m, tex, n)?;
+    let args = VaryingArgs::EvalPdf { wi, wo, active, f, pdf };
+    Ok(run(n, |s, e| args.dispatch(vp, tex, (s, e))))
+}
+
+/// [`eval_pdf_varying`] in f64 (the reference path, one element at a time).
+#[allow(clippy::too_many_arguments)]
+pub fn eval_pdf_varying_f64(
+    m: &Material,
+    tex: &PaintTexture<f64>,
+    wi: &Src3<f64>,
+    wo: &Src3<f64>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f64>>,
+    pdf: Option<&Dst1<f64>>,
+) -> Result<BatchReport, LayoutError> {
+    if tex.is_empty() {
+        return eval_pdf_f64(m, wi, wo, active, f, pdf);
+    }
+    let n = wi.n;
+    check_views(n, &[("wo", wo.n), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
+    let vp = varying_for(m, tex, n)?;
+    let args = VaryingArgs::EvalPdf { wi, wo, active, f, pdf };
+    Ok(run(n, |s, e| args.run::<f64>(vp, tex, (s, e))))
+}
+
+/// [`sample`] with per-element paint parameters (`tex`): element `i` is sampled as the material
+/// with `tex`'s values at `i` (mean lobe). Invalid parameters: zero outputs, flags
+/// `SAMPLE_FAILED | SAMPLE_INVALID_INPUT`, counted in [`BatchReport::invalid_params`].
+pub fn sample_varying(
+    m: &Material,
+    tex: &PaintTexture<f32>,
+    wo: &Src3<f32>,
+    u: &Src3<f32>,
+    active: Option<&[u8]>,
+    out: &mut SampleOut<f32>,
+) -> Result<BatchReport, LayoutError> {
+    if tex.is_empty() {
+        return sample(m, wo, u, active, out);
+    }
+    let n = wo.n;
+    check_views(n, &[("u", u.n), ("active", active.map_or(n, <[u8]>::len))])?;
+    check_views(n, &[("wi", out.wi.n), ("weight", out.weight.n), ("pdf", out.pdf.n)])?;
+    check_views(n, &[("flags", out.flags.as_ref().map_or(n, |f| f.len()))])?;
+    let vp = varying_for(m, tex, n)?;
+    let flags = out.flags.as_mut().map(|f| f.as_mut_ptr());
+    let out: &SampleOut<f32> = out;
+    let args = VaryingArgs::Sample { wo, u, active, out, flags };
+    Ok(run(n, |s, e| args.dispatch(vp, tex, (s, e))))
 }

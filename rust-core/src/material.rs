@@ -21,6 +21,9 @@ pub struct Material {
     params: Params,
     /// The spectral bank (`crate::spectral`), built on the first spectral evaluation.
     spectral: std::sync::OnceLock<Option<Box<crate::spectral::SpectralBank>>>,
+    /// Per-component tables for per-element parameters (coated paint), built on first use:
+    /// `[0]` at the material's coat roughness, `[1]` over the roughness grid.
+    varying: [std::sync::OnceLock<std::sync::Arc<crate::paint::varying::VaryingPaint>>; 2],
 }
 
 /// Returns a unit version of `w`, or `None` if it is not finite or has zero length.
@@ -81,13 +84,13 @@ impl Material {
     /// Builds a model from already validated parameters.
     pub fn from_params(info: &'static ModelInfo, params: Params) -> Result<Self, Error> {
         let model = (info.build)(&params)?;
-        Ok(Self { model, info, params, spectral: std::sync::OnceLock::new() })
+        Ok(Self { model, info, params, spectral: std::sync::OnceLock::new(), varying: Default::default() })
     }
 
     /// Assembles a material from a model built outside its registry `build` (e.g. a measured
     /// table held in memory); `params` must be the model's.
     pub(crate) fn from_parts(info: &'static ModelInfo, params: Params, model: Model) -> Self {
-        Self { model, info, params, spectral: std::sync::OnceLock::new() }
+        Self { model, info, params, spectral: std::sync::OnceLock::new(), varying: Default::default() }
     }
 
     /// A model with all its defaults.
@@ -125,6 +128,20 @@ impl Material {
     #[must_use]
     pub fn diffuse_reflectance(&self) -> [f64; 3] {
         crate::lobes::diffuse_reflectance(self)
+    }
+
+    /// The per-component tables that evaluate this material with per-element parameters
+    /// ([`crate::paint::varying`]; `vary_alpha`: the coat roughness varies too), built once and
+    /// kept; `None` for models other than `coated_paint`.
+    #[must_use]
+    pub fn varying_paint(&self, vary_alpha: bool) -> Option<&crate::paint::varying::VaryingPaint> {
+        let Model::CoatedPaint(p) = &self.model else { return None };
+        let cell = &self.varying[usize::from(vary_alpha)];
+        Some(
+            cell.get_or_init(|| {
+                std::sync::Arc::new(crate::paint::varying::VaryingPaint::new(p, &self.params, vary_alpha))
+            }),
+        )
     }
 
     /// Validated parameters, defaults included.

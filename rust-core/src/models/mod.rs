@@ -418,13 +418,13 @@ pub struct ScalarLoop<'a>(pub &'a Model);
 /// Lanes below the horizon get the normal instead (their results are discarded): models see
 /// only the inputs the scalar path lets through.
 #[inline(always)]
-fn above_or_up<L: Lanes>(above: L::Mask, w: Vec3<L>) -> Vec3<L> {
+pub(crate) fn above_or_up<L: Lanes>(above: L::Mask, w: Vec3<L>) -> Vec3<L> {
     Vec3::select(above, w, Vec3::from_f64(0.0, 0.0, 1.0))
 }
 
 /// The validity rules `Model::sample` applies to every sample.
 #[inline(always)]
-fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> LaneSample<L> {
+pub(crate) fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> LaneSample<L> {
     let valid = s.valid
         & above
         & lanes::gt(s.pdf, L::c(0.0))

@@ -32,13 +32,13 @@ pub struct MetalBase {
 
 impl MetalBase {
     #[inline(always)]
-    fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
+    pub(crate) fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
         let a = T::c(self.alpha);
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
     #[inline(always)]
-    fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+    pub(crate) fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
@@ -48,13 +48,13 @@ impl MetalBase {
     }
 
     #[inline(always)]
-    fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+    pub(crate) fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
         let (h, defined) = half_vector_masked(wi, wo);
         keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
     #[inline(always)]
-    fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+    pub(crate) fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
         crate::frame::reflect(wo, self.microfacet::<T>().sample_m(wo, u1, u2, true))
     }
 }

@@ -9,6 +9,7 @@ pub mod position_free_mc;
 pub mod rough_dielectric;
 pub mod sparkle;
 pub mod thin_film;
+pub mod varying;
 
 pub use crate::sampling::{hammersley3, radical_inverse};
 

@@ -1,0 +1,801 @@
+//! Coated paint whose `base_color`, `flake_density` and `coat_roughness` vary per element
+//! (textures), evaluated without rebuilding the material's tables per element.
+//!
+//! ## Why this is cheap and (nearly) exact
+//! The basecoat BRDF is linear in the pigment colour `ρ` and in the coverages:
+//! `f_b = ρ(1−c−c_p)(1−m)·f_pig + ρ c_p·f_pig,pearl + (1−c−c_p)m·[ρ f_metal,F0=1 + (1−ρ) f_metal,F0=0]
+//! + c·f_flake,unit + f_pearl-flakes` (Schlick is linear in `F0`). The layer tables `A1(μ)` and
+//! `U(μ) − A1(μ)` of [`super::coated_paint`] and the basecoat's mean albedo `ρ̄` are integrals
+//! of `f_b`, hence the same linear combinations of per-component tables ([`VaryingPaint`] holds
+//! one per component, estimated with that component's own sampler). Per element only weights
+//! are formed; the bounce factor `τ̄²ρ̄e / (1 − τ̄²ρ̄(1 − e))` and the multiple-scatter lobe's
+//! normalisation are closed forms of them. The basecoat's lobe-selection weights are closed
+//! forms too, so `pdf` and `sample` are the per-element material's.
+//!
+//! `coat_roughness` changes the coat lobe (evaluated per element with its own α) and,
+//! nonlinearly, the coat's transmittance `1 − E_top(μ)` and the escape probabilities inside
+//! the tables: those are tabulated over [`ALPHA_NODES`] nodes uniform in `√α` on
+//! `[0.001, 0.5]` and interpolated linearly (the interpolation error is measured in the tests
+//! and `docs/speed.md`). A per-element roughness needs a rough coat: elements must lie in
+//! `[0.001, 0.5]` (a smooth coat's delta lobe cannot blend into a rough one).
+//!
+//! The tables per component are Monte Carlo estimates like the material's own, but with each
+//! component's sampler instead of the mixture's: a material built with an element's
+//! parameters agrees with the varying evaluation up to the two estimates' noise (measured in
+//! the tests). The mean lobe is evaluated: per-element sparkle is not part of these calls.
+//!
+//! Out-of-range or non-finite per-element values make that element invalid (zero outputs,
+//! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
+
+use super::basecoat::{Basecoat, MetalBase};
+use super::coat::Coat;
+use super::coated_paint::CoatedPaint;
+use super::flakes::FlakeLayer;
+use super::pick3;
+use crate::bxdf::LaneSample;
+use crate::frame::half_vector_masked;
+use crate::fresnel;
+use crate::lanes::{self, keep, Lanes, Mask};
+use crate::math::{Rgb, Vec3};
+use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::params::Params;
+use crate::real::Real;
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
+use crate::table::MuTable;
+
+/// Per-element paint parameters as structure-of-arrays slices (`None`: the material's value).
+/// Units as the material's JSON: `base_color` in [0, 1] per channel, `flake_density` in %,
+/// `coat_roughness` the GGX α in [0.001, 0.5]. Each slice holds at least one value per element.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PaintTexture<'a, E> {
+    /// Pigment albedo per element: the red, green and blue arrays.
+    pub base_color: Option<[&'a [E]; 3]>,
+    /// Metallic flake coverage per element, in %.
+    pub flake_density: Option<&'a [E]>,
+    /// GGX α of the coat surface per element.
+    pub coat_roughness: Option<&'a [E]>,
+}
+
+impl<E> PaintTexture<'_, E> {
+    /// True when no parameter varies (the calls then are the material's own batch calls).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.base_color.is_none() && self.flake_density.is_none() && self.coat_roughness.is_none()
+    }
+
+    /// The shortest slice given (`usize::MAX` without any).
+    #[must_use]
+    pub fn min_len(&self) -> usize {
+        let mut n = usize::MAX;
+        if let Some(c) = &self.base_color {
+            n = n.min(c[0].len()).min(c[1].len()).min(c[2].len());
+        }
+        if let Some(f) = self.flake_density {
+            n = n.min(f.len());
+        }
+        if let Some(r) = self.coat_roughness {
+            n = n.min(r.len());
+        }
+        n
+    }
+}
+
+/// Number of `α` nodes of the tables when `coat_roughness` varies.
+pub const ALPHA_NODES: usize = 16;
+/// Smallest per-element coat roughness.
+pub const ALPHA_MIN: f64 = 0.001;
+/// Largest per-element coat roughness.
+pub const ALPHA_MAX: f64 = 0.5;
+/// `μ` nodes of the layer tables (as the material's).
+const NODES: usize = 48;
+/// `μ` nodes of the coat albedo table (as [`Coat`]'s: its nodes, so interpolation agrees).
+const E_NODES: usize = 64;
+/// Basecoat samples behind each table node (as the material's).
+const SAMPLES: usize = 2048;
+
+/// A flat table read per lane: f64 values for the reference path, f32 (padded) for SIMD.
+#[derive(Clone, Debug)]
+struct Flat {
+    v64: Vec<f64>,
+    v32: Vec<f32>,
+}
+
+impl Flat {
+    fn new(v64: Vec<f64>) -> Self {
+        let mut v32: Vec<f32> = v64.iter().map(|&x| x as f32).collect();
+        let padded = v32.len().next_multiple_of(16).max(32);
+        v32.resize(padded, *v32.last().unwrap_or(&0.0));
+        Self { v64, v32 }
+    }
+
+    /// Entry `idx` per lane (integral indices in range).
+    #[inline(always)]
+    fn get<L: Lanes>(&self, idx: L) -> L {
+        if L::WIDTH == 1 {
+            let i = idx.lane(0).f64() as usize;
+            return L::splat(<L::Elem as Real>::of(self.v64[i.min(self.v64.len() - 1)]));
+        }
+        L::lookup_f32_(&self.v32, idx)
+    }
+
+    /// Linear interpolation over `nodes` entries starting at `base`, at `μ ∈ [0, 1]`.
+    #[inline(always)]
+    fn at_mu<L: Lanes>(&self, nodes: usize, base: L, mu: L) -> L {
+        let last = (nodes - 1) as f64;
+        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last);
+        let i = lanes::min(x.floor_(), L::c(last - 1.0));
+        let t = x - i;
+        let (a, b) = (self.get(base + i), self.get(base + i + L::c(1.0)));
+        a + (b - a) * t
+    }
+}
+
+/// One basecoat component: its weight per element is a closed form of the parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// Unit pigment, weight `ρ (1 − c − c_p)(1 − m)`.
+    Pigment,
+    /// Unit pigment seen through pearl flakes, weight `ρ c_p`.
+    PigmentPearl,
+    /// Metal base with `F0 = 1`, weight `(1 − c − c_p) m ρ`.
+    MetalOne,
+    /// Metal base with `F0 = 0`, weight `(1 − c − c_p) m (1 − ρ)`.
+    MetalZero,
+    /// Metallic flakes of unit coverage, weight `c`.
+    Flakes,
+    /// The pearl flakes, weight 1.
+    Pearl,
+}
+
+/// Where an element's `α` falls on the node grid: the lower node (as a float) and the weight
+/// of the upper one.
+#[derive(Clone, Copy, Debug)]
+struct AlphaAt<L> {
+    node: L,
+    t: L,
+}
+
+/// An element's parameters and the closed forms derived from them, per lane.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Element<L: Lanes> {
+    rho: [L; 3],
+    /// Metallic flake coverage `c` (0..1).
+    c: L,
+    /// Coat GGX α (the material's when it does not vary).
+    alpha: L,
+    at: AlphaAt<L>,
+    /// Component weights per channel.
+    w: [[L; 3]; 6],
+    bounce: [L; 3],
+    norm: [L; 3],
+    /// Basecoat lobe-selection weights: pigment, metal, flakes.
+    base_sel: [L; 3],
+    /// Pigment weight `(1 − c − c_p)(1 − m)`.
+    pigment_weight: L,
+    /// Metal base weight `(1 − c − c_p) m`.
+    metal_weight: L,
+}
+
+/// The per-component tables of a coated paint (see the module docs), built once per material.
+#[derive(Clone, Debug)]
+pub struct VaryingPaint {
+    /// The material's coat (its α-independent parts, and its lobe when α does not vary).
+    coat: Coat,
+    /// `√α` of the nodes (one node, the material's α, when α does not vary).
+    alpha_sqrt: Vec<f64>,
+    /// `E_top(μ)` per α node (`E_NODES` each); unused when α does not vary.
+    e_top: Flat,
+    kinds: Vec<Kind>,
+    /// `A1` per (α node, component, channel), `NODES` values each.
+    a1: Flat,
+    /// `U − A1` per (α node, component, channel).
+    r: Flat,
+    /// Cosine average of `U − A1` per (α node, component, channel).
+    r_avg: Flat,
+    /// Escape probability `e` per α node.
+    escape: Flat,
+    /// Mean crossing transmittance `τ̄` per channel.
+    tau: [f64; 3],
+    /// Basecoat mean albedo per (component, channel).
+    rho_bar: Vec<[f64; 3]>,
+    /// Pearl coverage `c_p`.
+    pearl_c: f64,
+    /// Metallic weight `m` of the base.
+    metallic: f64,
+    metal: Option<MetalBase>,
+    /// Flakes: metallic coverage 1 (scaled per element), pearl coverage `c_p`.
+    flakes: Option<FlakeLayer>,
+    pearl_transmission: Option<MuTable>,
+    /// Mean normal reflectance of unit-coverage metallic flakes and of the pearl flakes (at `c_p`).
+    flake_nr: [f64; 2],
+    /// `mean(T_p(1))²` (the pigment-through-pearl selection weight).
+    pearl_t_sel: f64,
+    /// The material's own values.
+    material_rho: [f64; 3],
+    material_c: f64,
+    material_alpha: f64,
+}
+
+/// Flat index of a (node, component, channel) table.
+#[inline(always)]
+fn slot(node: usize, k: usize, c: usize, kinds: usize) -> usize {
+    (node * kinds + k) * 3 + c
+}
+
+impl VaryingPaint {
+    /// Builds the component tables of `paint` (with its parameters `p`); with `vary_alpha` the
+    /// tables span the α grid, otherwise the material's own coat only.
+    #[must_use]
+    pub fn new(paint: &CoatedPaint, p: &Params, vary_alpha: bool) -> Self {
+        let coat = paint.coat().clone();
+        let eta = coat.ior;
+        let alphas: Vec<f64> = if vary_alpha {
+            let (s0, s1) = (ALPHA_MIN.sqrt(), ALPHA_MAX.sqrt());
+            (0..ALPHA_NODES)
+                .map(|j| s0 + (s1 - s0) * j as f64 / (ALPHA_NODES - 1) as f64)
+                .map(|s| (s * s).clamp(ALPHA_MIN, ALPHA_MAX))
+                .collect()
+        } else {
+            vec![coat.roughness]
+        };
+        let coats: Vec<Coat> = if vary_alpha {
+            let thickness_um = coat.thickness_mm * 1e3;
+            alphas.iter().map(|&a| Coat::new(eta, a, thickness_um, coat.absorption_per_mm)).collect()
+        } else {
+            vec![coat.clone()]
+        };
+        let base = paint.basecoat();
+        let pearl_c = p.scalar("pearl_density") / 100.0;
+        let metallic = p.scalar("base_metallic");
+        let material_c = p.scalar("flake_density") / 100.0;
+        let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
+        let metal_ior = fresnel::metal(p.choice("flake_material")).expect("choice list holds known metals");
+        let pearl_table = base.flakes.as_ref().and_then(|f| f.pearl_reflectance.clone());
+        let unit_flakes = |metal: f64, pearl: f64| FlakeLayer {
+            alpha: flake_alpha,
+            metallic_coverage: metal,
+            metal_eta: metal_ior.eta.map(|n| n / eta),
+            metal_k: metal_ior.k.map(|k| k / eta),
+            pearl_coverage: pearl,
+            pearl_reflectance: pearl_table.clone(),
+        };
+        let metal_alpha = p.scalar("base_roughness");
+        let metal_with = |f0: f64| MetalBase { alpha: metal_alpha, f0: [f0; 3], weight: 1.0 };
+        let mut comps: Vec<(Kind, Basecoat)> =
+            vec![(Kind::Pigment, Basecoat::new([1.0; 3], 1.0, 0.0, None, None, None))];
+        if pearl_c > 0.0 {
+            let t = base.pearl_transmission.clone();
+            comps.push((Kind::PigmentPearl, Basecoat::new([1.0; 3], 0.0, 1.0, t, None, None)));
+        }
+        if metallic > 0.0 {
+            comps.push((Kind::MetalOne, Basecoat::new([0.0; 3], 0.0, 0.0, None, Some(metal_with(1.0)), None)));
+            comps.push((Kind::MetalZero, Basecoat::new([0.0; 3], 0.0, 0.0, None, Some(metal_with(0.0)), None)));
+        }
+        comps.push((Kind::Flakes, Basecoat::new([0.0; 3], 0.0, 0.0, None, None, Some(unit_flakes(1.0, 0.0)))));
+        if pearl_c > 0.0 {
+            comps.push((Kind::Pearl, Basecoat::new([0.0; 3], 0.0, 0.0, None, None, Some(unit_flakes(0.0, pearl_c)))));
+        }
+        let kinds: Vec<Kind> = comps.iter().map(|(k, _)| *k).collect();
+        let nk = kinds.len();
+        let na = coats.len();
+        let (escape, tau) = escape_and_tau(&coats);
+        let mut a1 = vec![0.0; na * nk * 3 * NODES];
+        let mut r = vec![0.0; na * nk * 3 * NODES];
+        let mut r_avg = vec![0.0; na * nk * 3];
+        let mut rho_bar = Vec::with_capacity(nk);
+        for (k, (_, b)) in comps.iter().enumerate() {
+            let (tables, rb) = component_tables(&coats, b);
+            rho_bar.push(rb);
+            for (j, (ta1, tr)) in tables.iter().enumerate() {
+                let avg = tr.cosine_average();
+                for c in 0..3 {
+                    let s = slot(j, k, c, nk);
+                    r_avg[s] = avg[c];
+                    for (m, (x, y)) in ta1.values().iter().zip(tr.values()).enumerate() {
+                        a1[s * NODES + m] = x[c];
+                        r[s * NODES + m] = y[c];
+                    }
+                }
+            }
+        }
+        let mut e_top = vec![0.0; na * E_NODES];
+        for (j, cj) in coats.iter().enumerate() {
+            for m in 0..E_NODES {
+                e_top[j * E_NODES + m] = cj.reflectance(m as f64 / (E_NODES - 1) as f64);
+            }
+        }
+        let flakes_possible = unit_flakes(1.0, pearl_c);
+        let flake_nr = [unit_flakes(1.0, 0.0).normal_reflectance(), unit_flakes(0.0, pearl_c).normal_reflectance()];
+        let pearl_transmission = base.pearl_transmission.clone();
+        let mean = |c: [f64; 3]| (c[0] + c[1] + c[2]) / 3.0;
+        let pearl_t_sel = pearl_transmission.as_ref().map_or(0.0, |t| mean(t.eval::<f64>(1.0)).powi(2));
+        Self {
+            alpha_sqrt: alphas.iter().map(|a| a.sqrt()).collect(),
+            coat,
+            e_top: Flat::new(e_top),
+            kinds,
+            a1: Flat::new(a1),
+            r: Flat::new(r),
+            r_avg: Flat::new(r_avg),
+            escape: Flat::new(escape),
+            tau,
+            rho_bar,
+            pearl_c,
+            metallic,
+            metal: (metallic > 0.0).then_some(MetalBase { alpha: metal_alpha, f0: [1.0; 3], weight: 1.0 }),
+            flakes: Some(flakes_possible),
+            pearl_transmission,
+            flake_nr,
+            pearl_t_sel,
+            material_rho: p.color("base_color"),
+            material_c,
+            material_alpha: paint.coat().roughness,
+        }
+    }
+
+    /// True when the coat roughness varies per element (the tables span the α grid).
+    #[must_use]
+    pub fn varies_alpha(&self) -> bool {
+        self.alpha_sqrt.len() > 1
+    }
+
+    /// The material's values `(base_color, flake coverage 0..1, coat α)`, used for the
+    /// parameters an element does not vary.
+    #[must_use]
+    pub fn defaults(&self) -> ([f64; 3], f64, f64) {
+        (self.material_rho, self.material_c, self.material_alpha)
+    }
+
+    /// `A1(μ)` and `M(μ)` of one element (f64; a report or a test, as
+    /// `CoatedPaint::layer_albedos`).
+    #[must_use]
+    pub fn layer_albedos(&self, rho: [f64; 3], coverage: f64, alpha: f64, mu: f64) -> ([f64; 3], [f64; 3]) {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        (self.single(&e, mu), self.multiple(&e, mu))
+    }
+
+    /// The three terms of `f` for one element (f64; tests): top reflection, single-scatter
+    /// layer, multiple scatter (as `CoatedPaint::eval_terms`).
+    #[must_use]
+    pub fn eval_terms(&self, rho: [f64; 3], coverage: f64, alpha: f64, wi: Vec3<f64>, wo: Vec3<f64>) -> [Rgb<f64>; 3] {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        let (a, b) = (self.multiple(&e, wi.z), self.multiple(&e, wo.z));
+        let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
+        [Rgb::splat(self.top_eval(&e, wi, wo)), self.layer_term(&e, wi, wo), m]
+    }
+
+    /// The density of one element for given lobe-selection weights `s` (f64; tests: with a
+    /// material's own weights it must reproduce that material's `pdf`).
+    #[must_use]
+    pub fn pdf_with_selection(
+        &self,
+        rho: [f64; 3],
+        coverage: f64,
+        alpha: f64,
+        wi: Vec3<f64>,
+        wo: Vec3<f64>,
+        s: [f64; 3],
+    ) -> f64 {
+        let e = self.element::<f64>(rho, coverage, alpha);
+        self.pdf_with(&e, wi, wo, s)
+    }
+
+    /// Per lane: whether the raw parameters are valid (`rho`, flake density in %, α), for the
+    /// ones given. Invalid lanes must not be evaluated (the caller substitutes the defaults).
+    #[inline(always)]
+    pub(crate) fn valid<L: Lanes>(&self, rho: Option<[L; 3]>, density: Option<L>, alpha: Option<L>) -> L::Mask {
+        let inside = |x: L, lo: f64, hi: f64| lanes::ge(x, L::c(lo)) & lanes::le(x, L::c(hi));
+        let mut ok = L::Mask::splat(true);
+        if let Some([r, g, b]) = rho {
+            ok = ok & inside(r, 0.0, 1.0) & inside(g, 0.0, 1.0) & inside(b, 0.0, 1.0);
+        }
+        if let Some(d) = density {
+            ok = ok & inside(d, 0.0, 100.0) & lanes::le(d * L::c(0.01) + L::c(self.pearl_c), L::c(1.0 + 1e-6));
+        }
+        if let Some(a) = alpha {
+            ok = ok & inside(a, ALPHA_MIN, ALPHA_MAX);
+        }
+        ok
+    }
+
+    /// The closed forms of one element (valid parameters: `rho`, coverage `c` in 0..1, α).
+    #[inline(always)]
+    pub(crate) fn element<L: Lanes>(&self, rho: [L; 3], c: L, alpha: L) -> Element<L> {
+        let zero = L::c(0.0);
+        let one = L::c(1.0);
+        let at = if self.varies_alpha() {
+            let n = self.alpha_sqrt.len();
+            let (s0, s1) = (self.alpha_sqrt[0], self.alpha_sqrt[n - 1]);
+            let x = lanes::clamp(
+                (lanes::sqrt(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
+                zero,
+                L::c((n - 1) as f64),
+            );
+            let node = lanes::min(x.floor_(), L::c((n - 2) as f64));
+            AlphaAt { node, t: x - node }
+        } else {
+            AlphaAt { node: zero, t: zero }
+        };
+        let cp = L::c(self.pearl_c);
+        let m = L::c(self.metallic);
+        let uncovered = lanes::max(one - c - cp, zero);
+        let pigment_weight = uncovered * (one - m);
+        let metal_weight = uncovered * m;
+        let mut w = [[zero; 3]; 6];
+        for (k, kind) in self.kinds.iter().enumerate() {
+            w[k] = match kind {
+                Kind::Pigment => rho.map(|r| r * pigment_weight),
+                Kind::PigmentPearl => rho.map(|r| r * cp),
+                Kind::MetalOne => rho.map(|r| r * metal_weight),
+                Kind::MetalZero => rho.map(|r| (one - r) * metal_weight),
+                Kind::Flakes => [c; 3],
+                Kind::Pearl => [one; 3],
+            };
+        }
+        // Bounce factor and the multiple-scatter lobe's normalisation, per channel.
+        let escape = self.alpha_lerp(&at, |node| self.escape.get(node));
+        let nk = self.kinds.len();
+        let mut bounce = [zero; 3];
+        let mut norm = [zero; 3];
+        for ch in 0..3 {
+            let (mut rb, mut ravg) = (zero, zero);
+            for (k, wk) in w.iter().enumerate().take(nk) {
+                rb += wk[ch] * L::c(self.rho_bar[k][ch]);
+                ravg += wk[ch]
+                    * self.alpha_lerp(&at, |node| {
+                        self.r_avg.get(node * L::c((nk * 3) as f64) + L::c((k * 3 + ch) as f64))
+                    });
+            }
+            let r = L::c(self.tau[ch] * self.tau[ch]) * rb;
+            let denom = one - r * (one - escape);
+            let b = lanes::select(lanes::gt(denom, L::c(1e-12)), r * escape / denom, one);
+            bounce[ch] = b;
+            let mbar = b * ravg;
+            norm[ch] = lanes::select(lanes::gt(mbar, L::c(1e-12)), one / (L::c(std::f64::consts::PI) * mbar), zero);
+        }
+        // Basecoat lobe selection (as `Basecoat::new`, per element).
+        let mean = |x: [L; 3]| (x[0] + x[1] + x[2]) / L::c(3.0);
+        let rho_mean = mean(rho);
+        let w_pig = rho_mean * (pigment_weight + cp * L::c(self.pearl_t_sel));
+        let w_metal = if self.metal.is_some() { metal_weight * lanes::max(rho_mean, L::c(0.04)) } else { zero };
+        let w_flakes = c * L::c(self.flake_nr[0]) + L::c(self.flake_nr[1]);
+        let total = lanes::max(w_pig + w_metal + w_flakes, L::c(1e-12));
+        let floor = L::c(0.02) * total;
+        let pig_present = lanes::gt(pigment_weight, zero) | lanes::gt(cp, zero);
+        let flakes_present = lanes::gt(c, zero) | lanes::gt(cp, zero);
+        let base_sel = [
+            keep(pig_present, lanes::max(w_pig, floor)),
+            if self.metal.is_some() { lanes::max(w_metal, floor) } else { zero },
+            keep(flakes_present, lanes::max(w_flakes, floor)),
+        ];
+        Element { rho, c, alpha, at, w, bounce, norm, base_sel, pigment_weight, metal_weight }
+    }
+
+    /// `g(node)` interpolated between the element's two α nodes.
+    #[inline(always)]
+    fn alpha_lerp<L: Lanes>(&self, at: &AlphaAt<L>, g: impl Fn(L) -> L) -> L {
+        let a = g(at.node);
+        if !self.varies_alpha() {
+            return a;
+        }
+        let b = g(at.node + L::c(1.0));
+        a + (b - a) * at.t
+    }
+
+    /// A combined layer table (`A1` or `U − A1`) per channel at `μ` for the element.
+    #[inline(always)]
+    fn table<L: Lanes>(&self, flat: &Flat, e: &Element<L>, mu: L) -> [L; 3] {
+        let nk = self.kinds.len();
+        let mut out = [L::c(0.0); 3];
+        for (ch, o) in out.iter_mut().enumerate() {
+            for k in 0..nk {
+                let off = L::c(((k * 3 + ch) * NODES) as f64);
+                let stride = L::c((nk * 3 * NODES) as f64);
+                let v = self.alpha_lerp(&e.at, |node| flat.at_mu(NODES, node * stride + off, mu));
+                *o += e.w[k][ch] * v;
+            }
+        }
+        out
+    }
+
+    /// `A1(μ)` of the element.
+    #[inline(always)]
+    fn single<L: Lanes>(&self, e: &Element<L>, mu: L) -> [L; 3] {
+        self.table(&self.a1, e, mu)
+    }
+
+    /// `M(μ) = bounce · (U − A1)(μ)` of the element.
+    #[inline(always)]
+    fn multiple<L: Lanes>(&self, e: &Element<L>, mu: L) -> [L; 3] {
+        let r = self.table(&self.r, e, mu);
+        [0, 1, 2].map(|c| lanes::max(e.bounce[c] * r[c], L::c(0.0)))
+    }
+
+    /// Energy the top surface reflects for incidence `μ`.
+    #[inline(always)]
+    fn reflectance<L: Lanes>(&self, e: &Element<L>, mu: L) -> L {
+        if !self.varies_alpha() || !self.coat.has_interface() {
+            return self.coat.reflectance(mu);
+        }
+        self.alpha_lerp(&e.at, |node| self.e_top.at_mu(E_NODES, node * L::c(E_NODES as f64), mu))
+    }
+
+    #[inline(always)]
+    fn transmittance<L: Lanes>(&self, e: &Element<L>, mu: L) -> L {
+        lanes::max(L::c(1.0) - self.reflectance(e, mu), L::c(0.0))
+    }
+
+    #[inline(always)]
+    fn coat_microfacet<L: Lanes>(e: &Element<L>) -> Microfacet<L> {
+        Microfacet::new(DistributionKind::Ggx, e.alpha, e.alpha)
+    }
+
+    /// The rough top reflection with the element's α.
+    #[inline(always)]
+    fn top_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        if !self.varies_alpha() {
+            return self.coat.reflection_eval(wi, wo);
+        }
+        if !self.coat.has_interface() {
+            return L::c(0.0);
+        }
+        let (h, defined) = half_vector_masked(wi, wo);
+        let mf = Self::coat_microfacet(e);
+        let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
+        let f = fresnel::dielectric(wo.dot(h), L::c(self.coat.ior)) * mf.d(h) * g / (L::c(4.0) * wi.z * wo.z);
+        keep(defined & lanes::gt(g, L::c(0.0)), f)
+    }
+
+    #[inline(always)]
+    fn top_pdf<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        if !self.varies_alpha() {
+            return self.coat.reflection_pdf(wi, wo);
+        }
+        let (h, defined) = half_vector_masked(wi, wo);
+        keep(defined, Self::coat_microfacet(e).visible_d(wo, h) * reflection_jacobian(wo, h))
+    }
+
+    #[inline(always)]
+    fn top_sample<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>, u1: L, u2: L) -> Vec3<L> {
+        if !self.varies_alpha() {
+            return self.coat.reflection_sample(wo, u1, u2);
+        }
+        crate::frame::reflect(wo, Self::coat_microfacet(e).sample_m(wo, u1, u2, true))
+    }
+
+    /// True when the element's coat is the smooth (delta) coat.
+    fn smooth(&self) -> bool {
+        !self.varies_alpha() && self.coat.is_smooth()
+    }
+
+    /// The basecoat BRDF of the element (directions inside the coat).
+    #[inline(always)]
+    fn base_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let inv_pi = L::c(std::f64::consts::FRAC_1_PI);
+        let pw = e.pigment_weight;
+        let mut f = match &self.pearl_transmission {
+            None => Rgb::new(e.rho[0] * inv_pi * pw, e.rho[1] * inv_pi * pw, e.rho[2] * inv_pi * pw),
+            Some(t) => {
+                let (a, b) = (t.eval_lanes(wi.z), t.eval_lanes(wo.z));
+                let cp = L::c(self.pearl_c);
+                Rgb::new(
+                    e.rho[0] * inv_pi * (pw + cp * a[0] * b[0]),
+                    e.rho[1] * inv_pi * (pw + cp * a[1] * b[1]),
+                    e.rho[2] * inv_pi * (pw + cp * a[2] * b[2]),
+                )
+            }
+        };
+        if let Some(m) = &self.metal {
+            let (h, defined) = half_vector_masked(wi, wo);
+            let mf = m.microfacet::<L>();
+            let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
+            let fm = fresnel::schlick_rgb(wi.dot(h), Rgb::new(e.rho[0], e.rho[1], e.rho[2]))
+                * (e.metal_weight * mf.d(h) * g / (L::c(4.0) * wi.z * wo.z));
+            f += Rgb::select(defined & lanes::gt(g, L::c(0.0)), fm, Rgb::zero());
+        }
+        if let Some(fl) = &self.flakes {
+            f += fl.eval_scaled(wi, wo, e.c, L::c(1.0));
+        }
+        f
+    }
+
+    /// Density of the element's basecoat mixture.
+    #[inline(always)]
+    fn base_pdf<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        let [a, b, c] = e.base_sel;
+        let total = a + b + c;
+        let mut p = a * cosine_hemisphere_pdf(wi.z);
+        if let Some(m) = &self.metal {
+            p += b * m.pdf(wi, wo);
+        }
+        if let Some(f) = &self.flakes {
+            p += keep(lanes::gt(c, L::c(0.0)), c * f.pdf(wi, wo));
+        }
+        keep(lanes::gt(total, L::c(0.0)), p / total)
+    }
+
+    /// The element's basecoat lobe choice and direction (as `Basecoat::sample_direction_masked`).
+    #[inline(always)]
+    fn base_sample<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>, u: [L; 3], active: L::Mask) -> (Vec3<L>, L::Mask) {
+        let pick = pick3(e.base_sel, u[0]);
+        let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];
+        let mut wi = Vec3::from_f64(0.0, 0.0, 1.0);
+        if pigment.any() {
+            wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
+        }
+        if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
+            wi = Vec3::select(metal, m.sample_direction(wo, u[1], u[2]), wi);
+        }
+        if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
+            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], flake), wi);
+        }
+        (wi, pick.valid)
+    }
+
+    /// The single-scatter layer term of the element.
+    #[inline(always)]
+    fn layer_term<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let (ti, to) = (self.transmittance(e, wi.z), self.transmittance(e, wo.z));
+        let crosses = lanes::gt(ti, L::c(0.0)) & lanes::gt(to, L::c(0.0));
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let scale = ti * to / L::c(self.coat.ior * self.coat.ior);
+        let mut f = self.base_eval(e, wi_in, wo_in) * scale;
+        if self.coat.absorbs() {
+            let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
+            f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
+        }
+        Rgb::select(crosses, f, Rgb::zero())
+    }
+
+    /// `f_r` of the element (both directions above the surface).
+    #[inline(always)]
+    pub(crate) fn eval_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+        let top = self.top_eval(e, wi, wo);
+        let (a, b) = (self.multiple(e, wi.z), self.multiple(e, wo.z));
+        let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
+        Rgb::splat(top) + self.layer_term(e, wi, wo) + m
+    }
+
+    /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
+    #[inline(always)]
+    fn selection<L: Lanes>(&self, e: &Element<L>, mu_o: L) -> [L; 3] {
+        let [a, b, c] = self.single(e, mu_o);
+        let [d, f, g] = self.multiple(e, mu_o);
+        let third = L::c(3.0);
+        [self.reflectance(e, mu_o), (a + b + c) / third, (d + f + g) / third]
+    }
+
+    #[inline(always)]
+    fn pdf_with<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, s: [L; 3]) -> L {
+        let total = s[0] + s[1] + s[2];
+        let mut p = s[0] * self.top_pdf(e, wi, wo);
+        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let layer = s[1] * self.base_pdf(e, wi_in, wo_in) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
+        p += keep(lanes::gt(s[1], L::c(0.0)), layer);
+        p += s[2] * cosine_hemisphere_pdf(wi.z);
+        keep(lanes::gt(total, L::c(0.0)), p / total)
+    }
+
+    /// Sampling density of the element (both directions above the surface).
+    #[inline(always)]
+    pub(crate) fn pdf_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
+        self.pdf_with(e, wi, wo, self.selection(e, wo.z))
+    }
+
+    /// A sample of the element (`wo` above the surface), as `CoatedPaint::sample_lanes`.
+    #[inline(always)]
+    pub(crate) fn sample_lanes<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
+        let selection = self.selection(e, wo.z);
+        let pick = pick3(selection, u[0]);
+        let [top, layer, multiple] = pick.lobe;
+        let normal = Vec3::from_f64(0.0, 0.0, 1.0);
+        let w_top = if top.any() { self.top_sample(e, wo, u[1], u[2]) } else { normal };
+        let (w_layer, layer_ok) = if layer.any() {
+            let wo_in = self.coat.refract_in(wo);
+            let (wi_in, base_ok) = self.base_sample(e, wo_in, [pick.u, u[1], u[2]], layer);
+            let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
+            (w_layer, base_ok & lanes::gt(wi_in.z, L::c(0.0)) & escapes)
+        } else {
+            (normal, L::Mask::splat(false))
+        };
+        let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
+        let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
+        let valid = pick.valid & (top | (layer & layer_ok) | multiple);
+        let f = self.eval_lanes(e, wi, wo);
+        let pdf = self.pdf_with(e, wi, wo, selection);
+        let s = LaneSample::from_eval(wi, f, pdf, valid & lanes::gt(wi.z, L::c(0.0)));
+        if !self.smooth() {
+            return s;
+        }
+        let delta = top;
+        let p = selection[0] / (selection[0] + selection[1] + selection[2]);
+        let w = selection[0] / p;
+        LaneSample {
+            wi,
+            weight: Rgb::select(delta, Rgb::splat(w), s.weight),
+            pdf: lanes::select(delta, p, s.pdf),
+            valid: (delta & valid & lanes::gt(p, L::c(0.0))) | (!delta & s.valid),
+            delta,
+        }
+    }
+}
+
+/// The mean escape probability `e` per coat and the mean crossing transmittance `τ̄` (as
+/// `coated_paint::layer_tables`).
+fn escape_and_tau(coats: &[Coat]) -> (Vec<f64>, [f64; 3]) {
+    let quad = 512;
+    let mut escape = vec![0.0; coats.len()];
+    let mut tau = [0.0; 3];
+    for k in 0..quad {
+        let mu = (k as f64 + 0.5) / quad as f64;
+        let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let weight = 2.0 * mu / quad as f64;
+        for (e, coat) in escape.iter_mut().zip(coats) {
+            if let Some(out) = coat.refract_out(w) {
+                *e += weight * coat.transmittance(out.z);
+            }
+        }
+        let a = coats[0].attenuation(mu);
+        for c in 0..3 {
+            tau[c] += weight * a[c];
+        }
+    }
+    (escape, tau)
+}
+
+/// `A1(μ)` and `U(μ) − A1(μ)` of one basecoat component under each coat, and its mean albedo
+/// `ρ̄` (the estimators of `coated_paint::layer_tables`, the component's own sampler). The
+/// coats differ only in roughness, so the basecoat samples are drawn once for all of them.
+fn component_tables(coats: &[Coat], base: &Basecoat) -> (Vec<(MuTable, MuTable)>, [f64; 3]) {
+    let n = SAMPLES;
+    let coat = &coats[0];
+    let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
+    let mut rho_bar = [0.0; 3];
+    for (k, point) in points.iter().enumerate() {
+        let v = super::hammersley3((k * 7919) % n, n);
+        let w = cosine_hemisphere(v[1], v[2]);
+        if let Some(s) = base.sample(w, *point) {
+            for (c, r) in rho_bar.iter_mut().enumerate() {
+                *r += s.weight[c] / n as f64;
+            }
+        }
+    }
+    let na = coats.len();
+    let mut single = vec![Vec::with_capacity(NODES); na];
+    let mut rest = vec![Vec::with_capacity(NODES); na];
+    for k in 0..NODES {
+        let mu = (k as f64 / (NODES - 1) as f64).max(1e-4);
+        let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let w_in = coat.refract_in(w);
+        let a_w = coat.attenuation(w_in.z);
+        let mut up = [0.0; 3];
+        let mut out = vec![[0.0; 3]; na];
+        for u in &points {
+            let Some(s) = base.sample(w_in, *u) else { continue };
+            let a_v = coat.attenuation(s.wi.z);
+            let exit = coat.refract_out(s.wi);
+            for c in 0..3 {
+                up[c] += s.weight[c] * a_v[c];
+            }
+            if let Some(v) = exit {
+                for (o, cj) in out.iter_mut().zip(coats) {
+                    let esc = cj.transmittance(v.z);
+                    for c in 0..3 {
+                        o[c] += s.weight[c] * a_v[c] * esc;
+                    }
+                }
+            }
+        }
+        let norm = n as f64;
+        for (j, cj) in coats.iter().enumerate() {
+            let t_w = cj.transmittance(mu);
+            let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * out[j][c] / norm);
+            let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
+            single[j].push(a1);
+            rest[j].push([0, 1, 2].map(|c| u[c] - a1[c]));
+        }
+    }
+    let tables =
+        single.into_iter().zip(rest).map(|(a, r)| (MuTable::from_values(a), MuTable::from_values(r))).collect();
+    (tables, rho_bar)
+}
