@@ -8,7 +8,7 @@
 //! `cargo run --release -p lacquer --example rough_coat_validation [-- --walks N] [--no-write]`
 //!
 //! Per configuration (coat α × base × view angle θo): the reflected lobe `f(wi, wo) cos θi`
-//! binned over 32 × 16 cells of equal solid angle (cos θi × folded azimuth difference), by
+//! binned over 12 × 6 cells of equal solid angle (cos θi × folded azimuth difference), by
 //! `N` analogue reference walks and `N` samples of the analytic model's own sampler (weights
 //! `f cos/pdf`, split into the top reflection and the rest by `eval_terms`). Reported:
 //! - albedo error: analytic / reference − 1 of the directional albedo (luminance);
@@ -30,12 +30,15 @@ use std::time::Instant;
 const BASES: &[(&str, &str)] = &[
     ("pigment", r#""flake_density": 0, "base_color": [0.5, 0.03, 0.03]"#),
     ("Al flakes 8 %", r#""flake_density": 8, "base_color": [0.05, 0.05, 0.06]"#),
-    ("metal base α 0.05", r#""flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": [0.9, 0.9, 0.9]"#),
+    (
+        "metal base α 0.05",
+        r#""flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": [0.9, 0.9, 0.9]"#,
+    ),
 ];
 const ALPHAS: [f64; 5] = [0.01, 0.03, 0.1, 0.2, 0.3];
-const THETA_O: [f64; 4] = [0.0, 30.0, 60.0, 75.0];
-const N_MU: usize = 32;
-const N_PHI: usize = 16;
+const THETA_O: [f64; 3] = [0.0, 40.0, 75.0];
+const N_MU: usize = 12;
+const N_PHI: usize = 6;
 
 fn dir(theta_deg: f64) -> Vec3<f64> {
     let t = theta_deg.to_radians();
@@ -57,7 +60,8 @@ fn accumulate(sum: &mut [[f64; 3]], sum2: &mut [[f64; 3]], b: usize, v: Rgb<f64>
 fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lobe {
     let mc = PositionFreeMc::new(paint);
     let bins = N_MU * N_PHI;
-    let (mut s, mut s2, mut b, mut b2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
+    let (mut s, mut s2, mut b, mut b2) =
+        (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0x7c0a7);
     for _ in 0..walks {
         let Some(exit) = mc.albedo_walk_exit(wo, &mut rng) else { continue };
@@ -75,7 +79,8 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
 
 fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lobe {
     let bins = N_MU * N_PHI;
-    let (mut s, mut s2, mut b, mut b2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
+    let (mut s, mut s2, mut b, mut b2) =
+        (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0xa7a1);
     for _ in 0..samples {
         let Some(smp) = paint.sample(wo, rng.uniform3()) else { continue };
@@ -94,29 +99,36 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
     }
 }
 
-/// `(albedo a, albedo r, albedo error, its noise, lobe L2, its noise)` in luminance.
+/// `(albedo a, albedo r, albedo error, its noise, lobe L2 with the noise's share removed
+/// (`√max(0, L2² − floor²)`), the noise floor)` in luminance.
 fn compare(a: &LobeHistogram, r: &LobeHistogram) -> [f64; 6] {
     let (la, lr) = (a.luminance(), r.luminance());
-    let lum_se = |h: &LobeHistogram| h.std_error.iter().map(|e| Rgb::from_array(*e).luminance()).collect::<Vec<_>>();
+    let lum_se =
+        |h: &LobeHistogram| h.std_error.iter().map(|e| Rgb::<f64>::from_array(*e).luminance()).collect::<Vec<f64>>();
     let (sa, sr) = (lum_se(a), lum_se(r));
     let (ta, tr): (f64, f64) = (la.iter().sum(), lr.iter().sum());
     let var_a: f64 = sa.iter().map(|x| x * x).sum();
     let var_r: f64 = sr.iter().map(|x| x * x).sum();
     let albedo_err = ta / tr - 1.0;
     let albedo_noise = (var_a / (ta * ta) + var_r / (tr * tr)).sqrt();
-    let (mut num, mut den, mut noise) = (0.0, 0.0, 0.0);
+    let (mut num, mut den, mut noise) = (0.0f64, 0.0f64, 0.0f64);
     for k in 0..la.len() {
         let (pa, pr) = (la[k] / ta, lr[k] / tr);
         num += (pa - pr).powi(2);
         den += pr * pr;
         noise += (sa[k] / ta).powi(2) + (sr[k] / tr).powi(2);
     }
-    [ta, tr, albedo_err, albedo_noise, (num / den).sqrt(), (noise / den).sqrt()]
+    [ta, tr, albedo_err, albedo_noise, ((num - noise).max(0.0) / den).sqrt(), (noise / den).sqrt()]
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let walks = args.iter().position(|a| a == "--walks").and_then(|i| args.get(i + 1)).and_then(|s| s.parse().ok()).unwrap_or(200_000usize);
+    let walks = args
+        .iter()
+        .position(|a| a == "--walks")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200_000usize);
     let write = !args.iter().any(|a| a == "--no-write");
     let start = Instant::now();
     let mut table = String::new();
@@ -141,10 +153,13 @@ fn main() {
                     start.elapsed().as_secs_f64()
                 );
                 cells.push(format!(
-                    "{:+.2} % / {:.1} % / {:.1} %",
+                    "{:+.2} ± {:.2} % / {:.1} % ({:.1}) / {:.1} % ({:.1})",
                     100.0 * all[2],
+                    100.0 * all[3],
                     100.0 * all[4],
-                    100.0 * b[4]
+                    100.0 * all[5],
+                    100.0 * b[4],
+                    100.0 * b[5]
                 ));
                 if all[2].abs() > worst_alb.abs() {
                     worst_alb = all[2];
@@ -164,8 +179,8 @@ fn main() {
     let mut md = format!(
         "Generated by `cargo run --release -p lacquer --example rough_coat_validation -- --walks {walks}` ({walks} reference walks and {walks} analytic samples per cell, single-threaded, {secs:.0} s; 2 shared cores).\n\n"
     );
-    md.push_str("Cells: albedo error (analytic/reference − 1, luminance) / lobe-shape error of the whole lobe / of the light that crossed the coat (relative L2 over 32 × 16 equal-solid-angle bins, each lobe normalised to unit albedo).\n\n");
-    md.push_str("| base | coat α | θo 0° | θo 30° | θo 60° | θo 75° |\n|---|---|---|---|---|---|\n");
+    md.push_str("Cells: albedo error (analytic/reference − 1, luminance) ± its standard error / lobe-shape error of the whole lobe (its noise floor) / of the light that crossed the coat (its noise floor). Lobe-shape error: relative L2 difference over 12 × 6 equal-solid-angle bins (cos θi × folded azimuth), each lobe normalised to unit albedo, with the noise's expected share removed (`√max(0, L2² − floor²)`; the floor is what the two estimates' standard errors alone give).\n\n");
+    md.push_str("| base | coat α | θo 0° | θo 40° | θo 75° |\n|---|---|---|---|---|\n");
     md.push_str(&table);
     println!("{md}");
     if write {
@@ -178,7 +193,11 @@ fn main() {
         } else {
             eprintln!("markers not found in {doc}: table printed only");
         }
-        for (what, idx, ylabel) in [("albedo", 1usize, "largest |albedo error| over θo (%)"), ("lobe", 2, "largest lobe-shape error over θo (%)"), ("body", 3, "largest body-lobe error over θo (%)")] {
+        for (what, idx, ylabel) in [
+            ("albedo", 1usize, "largest |albedo error| over θo (%)"),
+            ("lobe", 2, "largest lobe-shape error over θo (%)"),
+            ("body", 3, "largest body-lobe error over θo (%)"),
+        ] {
             let series: Vec<serde_json::Value> = curves
                 .iter()
                 .map(|c| {

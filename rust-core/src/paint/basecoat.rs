@@ -14,8 +14,8 @@ use crate::frame::half_vector_masked;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
-use crate::models::eon::Eon;
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::models::eon::Eon;
 use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::table::MuTable;
@@ -106,7 +106,16 @@ impl Basecoat {
             floor(w_metal, metal.is_some()),
             floor(w_flakes, flakes.is_some()),
         ];
-        Self { pigment, pigment_weight, pearl_coverage, pearl_transmission, metal, flakes, rough_pigment: None, selection }
+        Self {
+            pigment,
+            pigment_weight,
+            pearl_coverage,
+            pearl_transmission,
+            metal,
+            flakes,
+            rough_pigment: None,
+            selection,
+        }
     }
 
     /// The same basecoat with the pigment scattering by EON of roughness `r` (0–1) instead of
