@@ -606,8 +606,9 @@ mod tests {
     /// a **rough** coat reflects everything. With the multiple-scattering interface every walk
     /// leaves with weight 1, so the albedo is 1 up to the walks cut at the depth cap (asserted
     /// 1e-3; measured 1.0000 with 4 000 walks at α 0.1 and 0.3, θo 0°, 60°, 85°); with Walter's
-    /// single-scattering interface (the reference before) the same stack keeps 0.67–0.70 at
-    /// α 0.3 (asserted < 0.9, so this test fails on the old reference).
+    /// single-scattering interface (the reference before) the same stack keeps 0.925 (α 0.1)
+    /// and 0.703 (α 0.3) at normal incidence (asserted < 0.9 at α 0.3, so this test fails on
+    /// the old reference).
     #[test]
     fn lossless_rough_stack_has_unit_albedo() {
         for alpha in [0.1, 0.3] {

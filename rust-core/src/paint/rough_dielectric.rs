@@ -546,8 +546,8 @@ mod tests {
     /// `E[(1 − F)(1 + Λo) B(1 + Λo, 1 + Λt)]` (the Beta function of Heitz 2014 §5 for
     /// transmission; 48-point Gauss-Legendre per half, error ≲ 4e-4 against a noise of 2e-3),
     /// expectations over 20 000 visible normals of the crate's own sampler (the walk has its
-    /// own). Asserted within 4.5 σ of both estimates' noise; a sign error in Λ or a wrong
-    /// mirrored frame moves these probabilities by tens of σ. The single-scattering interface loses 1–24 % at α 0.3 (the energy
+    /// own). Asserted within 4.5 σ of both estimates' noise (measured ≤ 1.6 σ); a sign error
+    /// in Λ or a wrong mirrored frame moves these probabilities by tens of σ. The single-scattering interface loses 1–24 % at α 0.3 (the energy
     /// table of `docs/paint-validation.md`); the walk loses nothing.
     #[test]
     fn multiple_scattering_walk_is_lossless_and_starts_as_smith_single_scattering() {
