@@ -45,6 +45,9 @@ fn dir(theta_deg: f64) -> Vec3<f64> {
     spherical_direction(t.sin(), t.cos(), 0.0)
 }
 
+/// `(α, error in %)` points of one base.
+type Curve = Vec<(f64, f64)>;
+
 struct Lobe {
     all: LobeHistogram,
     body: LobeHistogram,
@@ -132,7 +135,7 @@ fn main() {
     let write = !args.iter().any(|a| a == "--no-write");
     let start = Instant::now();
     let mut table = String::new();
-    let mut curves: Vec<(String, Vec<(f64, f64)>, Vec<(f64, f64)>, Vec<(f64, f64)>)> = Vec::new();
+    let mut curves: Vec<(String, Curve, Curve, Curve)> = Vec::new();
     for (base_name, base_json) in BASES {
         let (mut alb, mut lobe, mut body) = (Vec::new(), Vec::new(), Vec::new());
         for &alpha in &ALPHAS {

@@ -339,7 +339,7 @@ impl<'a> PositionFreeMc<'a> {
                 w = bs.wi;
             } else {
                 let (d, weight) = self.top_scatter(-w, rng)?;
-                beta = beta * weight;
+                beta *= weight;
                 w = d;
                 if w.z > 0.0 {
                     return Some(WalkExit { weight: beta, direction: w, entered: true });
