@@ -34,6 +34,7 @@ const MATERIALS: &[&str] = &[
     r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 8, "coat_absorption": [2, 4, 8]}"#,
     r#"{"model": "coated_paint", "coat_roughness": 0.15, "flake_density": 5, "pearl_density": 10, "pearl_film_nm": 300, "base_metallic": 0.5}"#,
     r#"{"model": "coated_paint", "flake_density": 0, "coat_roughness": 0, "base_color": 1.0}"#,
+    r#"{"model": "coated_paint", "pigment_model": "eon", "pigment_roughness": 1, "coat_roughness": 0.1, "flake_density": 3, "pearl_density": 5, "base_color": [0.9, 0.5, 0.2]}"#,
 ];
 
 /// Random directions (both hemispheres, not unit), hard cases (grazing to 1e-7, normal, wi = ±wo,

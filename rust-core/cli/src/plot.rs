@@ -24,12 +24,14 @@ lacquer plot polar --material '{\"model\": \"ward\", \"alpha_x\": 0.2}' --theta 
 lacquer plot albedo --material oren_nayar --material eon -o albedo.svg\n  \
 lacquer plot sampler --preset gold_flake_8 --theta 40 -o sampler.svg\n  \
 lacquer plot in-plane --table gold.binary --fit ward --fit cook_torrance --log -o fits.svg\n  \
-lacquer plot sheet --table gold.binary --fit ward --fit cook_torrance -o sheet.png")]
+lacquer plot sheet --table gold.binary --fit ward --fit cook_torrance -o sheet.png\n  \
+lacquer plot data --data docs/data/rough-coat-validation-albedo.json -o albedo-error.svg")]
 pub struct PlotArgs {
     /// What to plot: in-plane (BRDF in the plane of incidence), polar (the same slice in polar
     /// axes), albedo (directional albedo against the view angle), sampler (histogram of sampled
-    /// θi against the marginal of the pdf), sheet (renders of the tables and their fits).
-    #[arg(value_parser = ["in-plane", "polar", "albedo", "sampler", "sheet"])]
+    /// θi against the marginal of the pdf), sheet (renders of the tables and their fits),
+    /// data (curves measured elsewhere, from `--data`).
+    #[arg(value_parser = ["in-plane", "polar", "albedo", "sampler", "sheet", "data"])]
     pub kind: String,
     /// A preset; repeatable.
     #[arg(long)]
@@ -81,6 +83,11 @@ pub struct PlotArgs {
     /// Sheet samples per pixel.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
+    /// Curves for `plot data`: a JSON file `{"title", "xlabel", "ylabel", "log_y"?, "series":
+    /// [{"label", "x": [...], "y": [...]}]}` (the shape `--json` prints; the validation
+    /// examples write them into `docs/data/`).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
     /// Print the plotted data (or the sheet's materials) as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -284,6 +291,12 @@ fn run_inner(args: &PlotArgs) -> Result<(), String> {
     if args.kind == "sheet" && args.output.extension().and_then(|e| e.to_str()) != Some("png") {
         return Err("a sheet is a PNG: give -o FILE.png".into());
     }
+    if args.kind == "data" {
+        let plot = data_plot(args)?;
+        plot.figure(args.width, args.height).write(&args.output)?;
+        eprintln!("wrote {} ({} curves)", args.output.display(), plot.series.len());
+        return Ok(());
+    }
     let srcs = sources(args)?;
     let ch = args.channel.as_str();
     let what = if ch == "lum" { "luminance".to_string() } else { format!("channel {ch}") };
@@ -352,6 +365,40 @@ fn run_inner(args: &PlotArgs) -> Result<(), String> {
         eprintln!("wrote {} ({} curves)", args.output.display(), plot.series.len());
     }
     Ok(())
+}
+
+/// The plot of `--data`: curves measured elsewhere (see [`PlotArgs::data`]).
+fn data_plot(args: &PlotArgs) -> Result<Plot, String> {
+    let path = args.data.as_ref().ok_or("plot data needs --data FILE.json")?;
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text_of = |k: &str| v.get(k).and_then(Value::as_str).unwrap_or("").to_string();
+    let numbers = |s: &Value, k: &str| -> Result<Vec<f64>, String> {
+        s.get(k)
+            .and_then(Value::as_array)
+            .ok_or(format!("{}: a series lacks the list \"{k}\"", path.display()))?
+            .iter()
+            .map(|x| x.as_f64().ok_or(format!("{}: \"{k}\" holds a non-number", path.display())))
+            .collect()
+    };
+    let list = v.get("series").and_then(Value::as_array).ok_or(format!("{}: no \"series\" list", path.display()))?;
+    let mut series = Vec::new();
+    for s in list {
+        let (x, y) = (numbers(s, "x")?, numbers(s, "y")?);
+        if x.len() != y.len() || x.is_empty() {
+            return Err(format!("{}: a series has {} x and {} y values", path.display(), x.len(), y.len()));
+        }
+        let label = s.get("label").and_then(Value::as_str).unwrap_or("").to_string();
+        series.push(Series { label, points: x.into_iter().zip(y).collect(), style: Style::Line });
+    }
+    Ok(Plot {
+        title: text_of("title"),
+        xlabel: text_of("xlabel"),
+        ylabel: text_of("ylabel"),
+        log_y: args.log || v.get("log_y").and_then(Value::as_bool).unwrap_or(false),
+        polar: false,
+        series,
+    })
 }
 
 /// Renders every source on the built-in shader ball, one row: tables first, then fits.

@@ -250,3 +250,25 @@ fn bad_input_fails_with_a_clear_error() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// `plot data` draws curves measured elsewhere (the validation examples' JSON): the SVG carries
+/// exactly the file's values; a malformed file fails with a message naming it.
+#[test]
+fn data_plot_draws_the_files_curves() {
+    let data = tmp("curves.json");
+    std::fs::write(
+        &data,
+        r#"{"title": "t", "xlabel": "α", "ylabel": "%", "series": [{"label": "a", "x": [0.01, 0.1, 0.3], "y": [0.5, 1.5, 4.0]}, {"label": "b", "x": [0.01, 0.3], "y": [2, 3]}]}"#,
+    )
+    .unwrap();
+    let svg = tmp("curves.svg");
+    let (ok, _, err) = lacquer(&["plot", "data", "--data", data.to_str().unwrap(), "-o", svg.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let got = series(&std::fs::read_to_string(&svg).unwrap());
+    assert_eq!(got.len(), 2);
+    assert_eq!(got[0], ("a".to_string(), vec![0.01, 0.1, 0.3], vec![0.5, 1.5, 4.0]));
+    assert_eq!(got[1], ("b".to_string(), vec![0.01, 0.3], vec![2.0, 3.0]));
+    std::fs::write(&data, r#"{"series": [{"label": "a", "x": [1, 2], "y": [1]}]}"#).unwrap();
+    let (ok, _, err) = lacquer(&["plot", "data", "--data", data.to_str().unwrap(), "-o", svg.to_str().unwrap()]);
+    assert!(!ok && err.contains("curves.json") && err.contains("2 x and 1 y"), "{err}");
+}

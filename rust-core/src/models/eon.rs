@@ -45,6 +45,7 @@
 
 use crate::bxdf::{BsdfSample, Bxdf, Claims, ModelInfo};
 use crate::error::Error;
+use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
@@ -228,22 +229,34 @@ impl Eon {
     }
 }
 
-impl Bxdf for Eon {
-    #[inline]
-    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+impl Eon {
+    /// `f(wi, wo)` per lane (the one source of [`Bxdf::eval`]; the coated paint's rough pigment
+    /// evaluates it on SIMD lanes). `G(μ)/π` needs `acos`, which the lane types lack: it runs
+    /// per lane in the lane's scalar type; the rest is lane arithmetic.
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let (mi, mo) = (wi.z, wo.z);
-        let r = T::of(self.roughness);
+        let r = L::c(self.roughness);
+        let zero = L::c(0.0);
         // s = sin θi sin θo cos Δφ, the z parts cancelled exactly.
         let s = wi.x * wo.x + wi.y * wo.y;
-        let s_over_t = if s > T::zero() { s / mi.max(mo) } else { s };
+        let s_over_t = lanes::select(lanes::gt(s, zero), s / lanes::max(mi, mo), s);
         // 1 + r s/t ≥ 1 − r sin θi sin θo ≥ 0 exactly; for opposite grazing directions rounding
         // of near-unit inputs can push it below zero (f32: −2.9e-8 at cos θ = 1.2e-5, found by
         // `lacquer numerics`' smoke test), hence the clamp.
-        let ss = T::of(Self::fon_a(self.roughness)) * (T::one() + r * s_over_t).max(T::zero()) * T::inv_pi();
-        let c1 = T::of(C1);
-        let ms = (c1 - Self::g_over_pi(mi)).max(T::zero()) * (c1 - Self::g_over_pi(mo)).max(T::zero()) * T::inv_pi();
-        let rho = Rgb::from_array(self.albedo);
-        rho * ss + Rgb::from_array(self.ms_scale) * ms
+        let ss = L::c(Self::fon_a(self.roughness) * std::f64::consts::FRAC_1_PI) * lanes::max(L::c(1.0) + r * s_over_t, zero);
+        let c1 = L::c(C1);
+        let g = |mu: L| mu.map_lanes(Self::g_over_pi);
+        let ms = lanes::max(c1 - g(mi), zero) * lanes::max(c1 - g(mo), zero) * L::c(std::f64::consts::FRAC_1_PI);
+        Rgb::from_array(self.albedo) * ss + Rgb::from_array(self.ms_scale) * ms
+    }
+}
+
+impl Bxdf for Eon {
+    #[inline]
+    fn eval<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_lanes(wi, wo)
     }
 
     #[inline]

@@ -15,6 +15,7 @@ use crate::fresnel;
 use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::models::eon::Eon;
 use crate::real::Real;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::table::MuTable;
@@ -74,6 +75,9 @@ pub struct Basecoat {
     pub metal: Option<MetalBase>,
     /// Optional flakes.
     pub flakes: Option<FlakeLayer>,
+    /// The pigment's rough-diffuse lobe: EON (energy-preserving Oren-Nayar, albedo ρ) in place
+    /// of Lambert's `ρ/π` (None: Lambert). Set by [`Basecoat::with_rough_pigment`].
+    pub rough_pigment: Option<Eon>,
     /// Lobe-selection weights: pigment, metal, flakes.
     selection: [f64; 3],
 }
@@ -102,13 +106,36 @@ impl Basecoat {
             floor(w_metal, metal.is_some()),
             floor(w_flakes, flakes.is_some()),
         ];
-        Self { pigment, pigment_weight, pearl_coverage, pearl_transmission, metal, flakes, selection }
+        Self {
+            pigment,
+            pigment_weight,
+            pearl_coverage,
+            pearl_transmission,
+            metal,
+            flakes,
+            rough_pigment: None,
+            selection,
+        }
     }
 
-    /// Diffuse pigment term `ρ/π (w + c_p T_p(μi) T_p(μo))`.
+    /// The same basecoat with the pigment scattering by EON of roughness `r` (0–1) instead of
+    /// Lambert (issue 17, item 5). The pigment is still sampled by its cosine lobe (the pdf is
+    /// the same, so sampling stays consistent; EON's lobe is within a few tens of percent of a
+    /// cosine, so the variance stays bounded).
+    #[must_use]
+    pub fn with_rough_pigment(mut self, r: f64) -> Self {
+        self.rough_pigment = Some(Eon::new(self.pigment, r));
+        self
+    }
+
+    /// Diffuse pigment term `f_p(wi, wo) (w + c_p T_p(μi) T_p(μo))`, `f_p = ρ/π` (Lambert) or
+    /// EON with albedo ρ.
     #[inline(always)]
     fn pigment_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let rho = Rgb::from_array(self.pigment) * T::c(std::f64::consts::FRAC_1_PI);
+        let rho = match &self.rough_pigment {
+            None => Rgb::from_array(self.pigment) * T::c(std::f64::consts::FRAC_1_PI),
+            Some(eon) => eon.eval_lanes(wi, wo),
+        };
         match &self.pearl_transmission {
             None => rho * T::c(self.pigment_weight),
             Some(t) => {

@@ -20,6 +20,8 @@
 //! | `pearl_film_ior` | scalar | 2.6 | [1.3, 3.2] | | film index (TiO₂ rutile ≈ 2.6–2.9) |
 //! | `pearl_substrate_ior` | scalar | 1.58 | [1.3, 2.0] | | mica index |
 //! | `pearl_structure` | choice | platelet | platelet, film | | `platelet`: the film on both faces of an incoherent mica core ([`super::thin_film::ThinFilm::platelet_reflectance`]); `film`: one film on semi-infinite mica (before issue 17) |
+//! | `pigment_model` | choice | lambert | lambert, eon | | scattering of the pigment: Lambert `ρ/π`, or EON (energy-preserving Oren-Nayar, [`crate::models::eon`]) of albedo ρ |
+//! | `pigment_roughness` | scalar | 0.5 | [0, 1] | | EON roughness r of the pigment (used with `pigment_model = eon`; 0 is Lambert) |
 //! | `surface_scale_mm` | scalar | 100 | [0.001, 1e6] | mm | physical length of one uv unit (sparkle) |
 //! | `sparkle` | bool | true | | | resolve individual flakes when a footprint is given |
 //!
@@ -51,9 +53,11 @@
 //! measures their cost (`docs/paint-validation.md`): for a smooth coat over a Lambertian base
 //! the model is exact (the M lobe reduces to the bounce series) and agrees within the
 //! reference's noise; an absorbing coat is 0.7 % off; flakes and pearlescent flakes 1–3 % on
-//! average and up to ≈ 10 % (their light returns specularly, not diffusely). Rough coats differ
-//! by 5 % (α 0.1) to 20 % (α 0.3) from a reference whose single-scattering microfacet interface
-//! itself loses that much energy, so that comparison is not yet conclusive.
+//! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
+//! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
+//! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
+//! for α 0.1–0.3; over a sharp metal base the lobe is not blurred by the rough interface (lobe
+//! shape 5–93 % off for α ≥ 0.1).
 //!
 //! ## Sparkle
 //! With a surface point and footprint ([`Bxdf::eval_at`]), each flake population's lobe in
@@ -165,6 +169,20 @@ const PARAMS: &[ParamSpec] = &[
         &["platelet", "film"],
         "platelet: oxide film on both faces of an incoherent mica core; film: one film on semi-infinite mica",
     ),
+    ParamSpec::choice(
+        "pigment_model",
+        "lambert",
+        &["lambert", "eon"],
+        "lambert: the pigment scatters as ρ/π; eon: energy-preserving Oren-Nayar (OpenPBR) of albedo ρ",
+    ),
+    ParamSpec::scalar(
+        "pigment_roughness",
+        0.5,
+        0.0,
+        1.0,
+        "",
+        "EON roughness of the pigment (with pigment_model = eon; 0 is Lambert)",
+    ),
     ParamSpec::scalar("surface_scale_mm", 100.0, 0.001, 1e6, "mm", "physical length of one uv unit (for sparkle)"),
     ParamSpec::boolean("sparkle", true, "resolve individual flakes when a surface position and footprint are given"),
 ];
@@ -181,6 +199,7 @@ pub static INFO: ModelInfo = ModelInfo {
         r#"{"coat_roughness": 0, "flake_density": 8, "flake_material": "Au", "coat_absorption": [2, 4, 8]}"#,
         r#"{"coat_roughness": 0.15, "flake_density": 5, "pearl_density": 10, "pearl_film_nm": 300, "base_metallic": 0.5}"#,
         r#"{"base_color": 1.0, "flake_density": 0, "coat_roughness": 0}"#,
+        r#"{"pigment_model": "eon", "pigment_roughness": 1, "base_color": [0.9, 0.5, 0.2], "flake_density": 3, "coat_roughness": 0.05}"#,
     ],
     build,
 };
@@ -322,6 +341,11 @@ impl CoatedPaint {
             metal,
             flakes,
         );
+        let base = if p.choice("pigment_model") == "eon" {
+            base.with_rough_pigment(p.scalar("pigment_roughness"))
+        } else {
+            base
+        };
         let (single, multiple) = layer_tables(&coat, &base);
         let m_avg = multiple.cosine_average();
         let multiple_norm = m_avg.map(|m| if m > 1e-12 { 1.0 / (std::f64::consts::PI * m) } else { 0.0 });
@@ -547,9 +571,18 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
     let n = TABLE_SAMPLES;
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
     let mut rho_bar = [0.0; 3];
+    // The permuted point set below is not independent of `points` (an odd multiplier mod 2^11
+    // keeps the radical inverses' structure): harmless where the basecoat's weight hardly
+    // depends on the pair, a bias of +22 % in ρ̄ for a white EON pigment at r = 1. EON pigments
+    // take independent pseudo-random incidence directions instead; the other basecoats keep the
+    // permuted set so that their tables (and the presets) stay bit for bit as they were.
+    let mut rng = base.rough_pigment.as_ref().map(|_| crate::rng::Pcg32::new(0x5eed_e0e0, 17));
     for (k, u) in points.iter().enumerate() {
-        // Incidence from a cosine-distributed direction (a second, decorrelated point set).
-        let v = super::hammersley3((k * 7919) % n, n);
+        // Incidence from a cosine-distributed direction (a second point set).
+        let v = match rng.as_mut() {
+            Some(r) => r.uniform3(),
+            None => super::hammersley3((k * 7919) % n, n),
+        };
         let w = cosine_hemisphere(v[1], v[2]);
         if let Some(s) = base.sample(w, *u) {
             for (c, r) in rho_bar.iter_mut().enumerate() {
@@ -557,6 +590,9 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
             }
         }
     }
+    // An energy-conserving basecoat has ρ̄ ≤ 1; an estimate above it (noise, for a white
+    // pigment) would make the bounce series return more than it received.
+    let rho_bar = rho_bar.map(|r: f64| r.min(1.0));
     let bounce: [f64; 3] = [0, 1, 2].map(|c| {
         let r = tau[c] * tau[c] * rho_bar[c];
         let denom = 1.0 - r * (1.0 - escape);
@@ -782,5 +818,92 @@ mod tests {
         let expect = (1.0 - f0).powi(2) / 2.25 / std::f64::consts::PI;
         let got = p.layer_term(n, n, 1.0, 1.0);
         assert!((got.r - expect).abs() < 1e-12, "{} vs {expect}", got.r);
+    }
+    /// `∫ f(wi, wo) cos θi dωi` by Gauss-Legendre product quadrature split at EON's kinks
+    /// (μi = μo; Δφ = ±π/2, where `s` changes sign).
+    fn quadrature_albedo(f: impl Fn(Vec3<f64>) -> f64, mu_o: f64) -> f64 {
+        use crate::quadrature::gauss_legendre_on;
+        use std::f64::consts::PI;
+        let mut total = 0.0;
+        for (m0, m1) in [(0.0, mu_o), (mu_o, 1.0)] {
+            let (mus, wm) = gauss_legendre_on(40, m0, m1);
+            for (mu, wmu) in mus.iter().zip(&wm) {
+                for (p0, p1) in [(-PI, -0.5 * PI), (-0.5 * PI, 0.5 * PI), (0.5 * PI, PI)] {
+                    let (phis, wp) = gauss_legendre_on(40, p0, p1);
+                    for (phi, wphi) in phis.iter().zip(&wp) {
+                        let s = (1.0 - mu * mu).sqrt();
+                        total += wmu * wphi * mu * f(Vec3::new(s * phi.cos(), s * phi.sin(), *mu));
+                    }
+                }
+            }
+        }
+        total
+    }
+
+    /// Issue 17, item 5: `pigment_model = eon` makes the pigment scatter by EON. Without a coat
+    /// (η = 1) and flakes the paint *is* EON of albedo ρ (asserted 1e-12 relative; the old model
+    /// rejected the parameter, and its pigment was Lambert, 5–30 % away at r = 1), its albedo is
+    /// EON's closed form `ρE(μ) + ρ_ms(1 − E(μ))` (quadrature, asserted 2e-9; measured ≤ 4.0e-10)
+    /// and the tabulated single-scatter albedo the sampler uses agrees with it (2048
+    /// Hammersley samples per node: asserted 2e-3 for μ ≥ 0.2, measured ≤ 1.2e-3; 8e-3 at
+    /// μ 0.05, measured 4.8e-3). `pigment_model =
+    /// lambert` (the default) is the old model bit for bit.
+    #[test]
+    fn eon_pigment_is_eon_and_keeps_its_closed_form_albedo() {
+        let rho = [0.9, 0.5, 0.2];
+        let r = 1.0;
+        let json = |extra: &str| {
+            format!(
+                r#"{{"model": "coated_paint", "coat_ior": 1.0, "coat_roughness": 0, "flake_density": 0, "base_color": [0.9, 0.5, 0.2]{extra}}}"#
+            )
+        };
+        let p = paint(&json(r#", "pigment_model": "eon", "pigment_roughness": 1"#));
+        let eon = crate::models::eon::Eon::new(rho, r);
+        let lambert = paint(&json(""));
+        let explicit = paint(&json(r#", "pigment_model": "lambert", "pigment_roughness": 1"#));
+        let mut rng = crate::rng::Pcg32::new(17, 5);
+        let mut max_dev_from_lambert = 0.0f64;
+        for _ in 0..200 {
+            let wi = crate::sampling::uniform_hemisphere(rng.uniform(), rng.uniform());
+            let wo = crate::sampling::uniform_hemisphere(rng.uniform(), rng.uniform());
+            let (got, want) = (p.eval(wi, wo), eon.eval(wi, wo));
+            for c in 0..3 {
+                assert!((got[c] - want[c]).abs() <= 1e-12 * want[c], "{got:?} vs EON {want:?}");
+                max_dev_from_lambert = max_dev_from_lambert.max((got[c] * std::f64::consts::PI / rho[c] - 1.0).abs());
+            }
+            assert_eq!(lambert.eval(wi, wo), explicit.eval(wi, wo));
+            assert_eq!(lambert.pdf(wi, wo), explicit.pdf(wi, wo));
+        }
+        assert!(max_dev_from_lambert > 0.05, "EON at r = 1 should differ from Lambert: {max_dev_from_lambert}");
+        for mu in [1.0, 0.8, 0.5, 0.2, 0.05] {
+            let wo = Vec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
+            let table = p.layer_albedos(mu).0;
+            for c in 0..3 {
+                let closed = crate::models::eon::Eon::directional_albedo(rho[c], r, mu);
+                let quad = quadrature_albedo(|wi| p.eval(wi, wo)[c], mu);
+                eprintln!("μ {mu} ch {c}: closed {closed:.12} quadrature {quad:.12} table {:.6}", table[c]);
+                assert!((quad - closed).abs() < 2e-9, "μ {mu}: quadrature {quad} vs closed form {closed}");
+                // Grazing nodes are the noisiest (EON's lobe leans to grazing while the
+                // pigment is sampled by the cosine): 4.8e-3 measured at μ 0.05.
+                let tol = if mu < 0.1 { 8e-3 } else { 2e-3 };
+                assert!((table[c] - closed).abs() < tol, "μ {mu}: table {} vs closed form {closed}", table[c]);
+            }
+        }
+    }
+
+    /// A lossless smooth coat over a white EON pigment (r = 1) keeps the energy EON preserves:
+    /// the analytic albedo stays within [0.99, 1 + 1e-9] at every angle (measured 0.9995–0.9996;
+    /// before ρ̄ was capped at 1, sampling noise in ρ̄ gave 1.012 at μ 1).
+    #[test]
+    fn lossless_coat_over_white_eon_keeps_its_energy() {
+        let p = paint(
+            r#"{"model": "coated_paint", "coat_roughness": 0, "flake_density": 0, "base_color": 1.0, "pigment_model": "eon", "pigment_roughness": 1}"#,
+        );
+        for mu in [1.0, 0.7, 0.4, 0.15] {
+            let (a1, m) = p.layer_albedos(mu);
+            let albedo = p.coat().reflectance(mu) + a1[1] + m[1];
+            eprintln!("μ {mu}: albedo {albedo:.5}");
+            assert!((0.99..=1.0 + 1e-9).contains(&albedo), "μ {mu}: {albedo}");
+        }
     }
 }
