@@ -1191,7 +1191,11 @@ impl VaryingArgs<'_, '_, f32> {
 fn varying_for<'m, E>(m: &'m Material, tex: &PaintTexture<E>, n: usize) -> Result<&'m VaryingPaint, LayoutError> {
     check_len("texture", tex.min_len(), n)?;
     m.varying_paint(tex.coat_roughness.is_some()).ok_or_else(|| {
-        LayoutError(format!("per-element parameters need a coated_paint material, not {}", m.info().name))
+        LayoutError(if m.info().name == "coated_paint" {
+            "per-element parameters need a coated_paint with pigment_model \"lambert\" (the EON pigment has no per-component tables)".to_string()
+        } else {
+            format!("per-element parameters need a coated_paint material, not {}", m.info().name)
+        })
     })
 }
 

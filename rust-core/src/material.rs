@@ -132,10 +132,15 @@ impl Material {
 
     /// The per-component tables that evaluate this material with per-element parameters
     /// ([`crate::paint::varying`]; `vary_alpha`: the coat roughness varies too), built once and
-    /// kept; `None` for models other than `coated_paint`.
+    /// kept; `None` for models other than `coated_paint` and for its EON pigment.
     #[must_use]
     pub fn varying_paint(&self, vary_alpha: bool) -> Option<&crate::paint::varying::VaryingPaint> {
         let Model::CoatedPaint(p) = &self.model else { return None };
+        // The component tables are built for the Lambertian pigment (linear in its colour);
+        // the EON pigment's multiple-scattering term is not, so it has no varying tables.
+        if self.params.choice("pigment_model") != "lambert" {
+            return None;
+        }
         let cell = &self.varying[usize::from(vary_alpha)];
         Some(
             cell.get_or_init(|| {

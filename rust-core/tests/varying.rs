@@ -470,6 +470,10 @@ fn no_texture_is_the_material_and_bad_inputs_are_errors() {
     let err =
         batch::eval_pdf_varying(&lambert, &tex, &a, &b, None, Some(&Dst3::interleaved(&mut f2)), None).unwrap_err();
     assert!(err.0.contains("coated_paint"), "{err}");
+    // The EON pigment is not linear in its colour: no component tables, a clear error.
+    let eon = Material::from_json(r#"{"model": "coated_paint", "pigment_model": "eon"}"#).unwrap();
+    let err = batch::eval_pdf_varying(&eon, &tex, &a, &b, None, Some(&Dst3::interleaved(&mut f2)), None).unwrap_err();
+    assert!(err.0.contains("pigment_model"), "{err}");
 }
 
 /// Cost of per-element parameters against the untextured paint (docs/speed.md): ns per
