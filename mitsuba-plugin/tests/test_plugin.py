@@ -245,7 +245,7 @@ def test_llvm_batched_equals_scalar(llvm_rgb):
         bsr, wr = ref.sample(ctx, s, float(u[0, i]), mi.Point2f(float(u[1, i]), float(u[2, i])))
         # Sampling: the batched path runs the SIMD lane sampler, whose Beckmann flake sampler
         # uses f32 polynomial erfc/erfinv where the scalar path calls libm (rust-core
-        # tests/batch.rs holds the two to 1e-3). Measured here: ≤ 1e-6 except pair 7
+        # tests/integration/batch.rs holds the two to 1e-3). Measured here: ≤ 1e-6 except pair 7
         # (u = 0.045, 0.0063, 0.999: the sampler's tail), pdf 8.2e-5 relative, wo 3.0e-5, weight
         # 4.2e-5; LACQUER_SIMD=scalar gives the scalar values exactly. Tolerances 2e-4 / 1e-4.
         assert math.isclose(BS_PDF[i], float(bsr.pdf), rel_tol=2e-4, abs_tol=1e-9)
