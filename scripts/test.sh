@@ -103,9 +103,9 @@ python3 bench/vs_mitsuba.py --quick >/dev/null
 
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
-# Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 15 s each from their
+# Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 10 s each from their
 # committed corpora; installs cargo-fuzz when absent and fails without the nightly toolchain.
-step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 15 s)"
+step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 10 s)"
 bash fuzz/smoke.sh
 step "mitsuba-plugin/test.sh"
 bash mitsuba-plugin/test.sh
