@@ -52,6 +52,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -180,6 +181,16 @@ inline std::string json_number(double v) {
     else
         std::snprintf(buf, sizeof buf, "%.17g", v);
     return buf;
+}
+
+/// A float32 value as JSON: the shortest decimal that reads back as the same float.
+inline std::string json_float(double v) {
+    float f = (float) v;
+    if (!std::isfinite(f))
+        return "null";
+    char buf[32];
+    auto r = std::to_chars(buf, buf + sizeof buf, f);
+    return std::string(buf, r.ptr);
 }
 
 /// Numbers of a canonical JSON value: `0.5` -> {0.5}, `[0.1,0.2,0.3]` -> {0.1, 0.2, 0.3},
@@ -1072,14 +1083,16 @@ private:
         ref<Texture> t = p.color() ? props.get_texture<Texture>(key)
                                    : props.get_unbounded_texture<Texture>(key);
         if (!t->is_spatially_varying()) {
+            // Texture values are float32: the shortest decimal that round-trips, so that a
+            // constant texture of 0.2 is the material of the plain property 0.2.
             if (p.numeric()) {
-                m_values[i] = json_number(scalar_of(t->mean()));
+                m_values[i] = json_float(scalar_of(t->mean()));
                 return true;
             }
             if constexpr (is_rgb_v<Spectrum>) {
                 auto c = t->eval(dr::zeros<SurfaceInteraction3f>());
-                m_values[i] = "[" + json_number(scalar_of(c.x())) + "," + json_number(scalar_of(c.y())) +
-                              "," + json_number(scalar_of(c.z())) + "]";
+                m_values[i] = "[" + json_float(scalar_of(c.x())) + "," + json_float(scalar_of(c.y())) +
+                              "," + json_float(scalar_of(c.z())) + "]";
                 return true;
             }
             Throw("lacquer: property \"%s\" is a constant texture object: in this variant give the "
