@@ -37,6 +37,10 @@
 //                       plugin holds no parameter list. Every scalar and colour parameter is
 //                       in mi.traverse; parameters_changed rebuilds the material (a bad value
 //                       raises and keeps the previous material).
+//   base_color, flake_density, coat_roughness (coated_paint)   also any Mitsuba texture:
+//                       evaluated per lane and passed to lq_eval_pdf_varying /
+//                       lq_sample_varying (mean lobe, no sparkle); a constant texture is
+//                       the plain value; untextured materials keep the plain calls
 //   tint       texture  optional reflectance-like multiplier in [0, 1] (e.g. a bitmap): scales
 //                       f_r, and so the sample weight; the pdf is unchanged
 //   footprint  bool     pass uv and the ray-differential footprint to spatially varying
@@ -1071,8 +1075,8 @@ private:
         }
     }
 
-    /// A texture object given for parameter i. A constant texture (not spatially varying,
-    /// e.g. `uniform`) becomes the plain value and returns true; a spatially varying one on
+    /// A texture object given for parameter i. A constant texture (`uniform`, `rgb`) becomes
+    /// the plain value and returns true; any other texture on
     /// base_color, flake_density or coat_roughness of coated_paint is kept, evaluated per lane,
     /// and returns true; on another parameter or model it raises a Mitsuba error.
     bool set_texture(const Properties &props, const std::string &key, size_t i) {
@@ -1082,7 +1086,10 @@ private:
             return false; // property_value names the expected type
         ref<Texture> t = p.color() ? props.get_texture<Texture>(key)
                                    : props.get_unbounded_texture<Texture>(key);
-        if (!t->is_spatially_varying()) {
+        // Constant: Mitsuba's uniform and rgb textures (is_spatially_varying() is no guide:
+        // a mesh_attribute reports false).
+        std::string_view cls = t->class_name();
+        if (cls == "UniformSpectrum" || cls == "SRGBReflectanceSpectrum") {
             // Texture values are float32: the shortest decimal that round-trips, so that a
             // constant texture of 0.2 is the material of the plain property 0.2.
             if (p.numeric()) {
@@ -1164,6 +1171,18 @@ private:
                       "pearl flakes: pearl_density > 0) cannot render in a spectral variant: the C ABI "
                       "has no per-element spectral call. Render it in scalar_rgb or llvm_ad_rgb, or "
                       "drop the texture or the pearl flakes");
+        if (textured()) {
+            // One element through the per-element call: a material the core cannot vary
+            // (e.g. pigment_model "eon") fails here, at load, with the core's reason.
+            float z0 = 0.f, z1 = 1.f, c = 0.5f, d = 0.f, a = 0.1f, f[3], pdf;
+            lq_status s = lq_eval_pdf_varying(
+                m_material.get(), 1, &z0, &z0, &z1, &z0, &z0, &z1, m_tex_color ? &c : nullptr,
+                m_tex_color ? &c : nullptr, m_tex_color ? &c : nullptr, m_tex_density ? &d : nullptr,
+                m_tex_roughness ? &a : nullptr, nullptr, &f[0], &f[1], &f[2], &pdf);
+            if (s != LQ_OK)
+                Throw("lacquer: this material cannot take textured parameters (%s): %s",
+                      lq_status_name(s), lq_last_error());
+        }
         // A textured base_color has a diffuse lobe wherever the texture is not black.
         if (m_tex_color)
             lobes |= LQ_LOBE_DIFFUSE;

@@ -277,3 +277,35 @@ def test_bad_texture_value_renders_black_with_one_warning(request, variant, bad)
     assert rel_diff(img[right], render({**PIGMENT, "base_color": value(C1)})[right]) < 2e-6
     warnings = [m for m in app.messages if "lacquer" in m and "base_color" in m]
     assert len(warnings) == 1 and "base_color" in warnings[0], app.messages
+
+
+def test_eon_pigment_texture_is_refused_at_load(scalar_rgb):
+    """The core varies only a Lambertian pigment: the plugin says so when the scene loads."""
+    with pytest.raises(RuntimeError) as e:
+        mi.load_dict({**PIGMENT, "pigment_model": "eon", "base_color": bitmap(C0, C1)})
+    assert "textured parameters" in str(e.value) and "lambert" in str(e.value), str(e.value)
+
+
+def test_mesh_attribute_base_color(scalar_rgb):
+    """A mesh attribute (per-vertex colour) on base_color: every vertex C0, so the render equals
+    the untextured C0 paint (pigment-only: measured 4.1e-7, float rounding)."""
+    bsdf = mi.load_dict({**PIGMENT, "base_color": {"type": "mesh_attribute", "name": "vertex_color"}})
+    assert "MeshAttribute" in str(bsdf)  # textured (a mesh attribute is not a constant)
+    props = mi.Properties()
+    props["bsdf"] = bsdf
+    mesh = mi.Mesh("quad", 4, 2, props, has_vertex_normals=False, has_vertex_texcoords=True)
+    p = mi.traverse(mesh)
+    p["vertex_positions"] = np.array([-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0], dtype=np.float32)
+    p["faces"] = np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)
+    p["vertex_texcoords"] = np.array([0, 0, 1, 0, 1, 1, 0, 1], dtype=np.float32)
+    mesh.add_attribute("vertex_color", 3, np.tile(np.array(C0, dtype=np.float32), 4))
+    p.update()
+    d = scene_dict(PIGMENT)
+    del d["plane"]
+    d["quad"] = mesh
+    scene = mi.load_dict(d)
+    img = render(scene)
+    ref = render({**PIGMENT, "base_color": value(C0)})
+    hit = ref.max(-1) > 0.35  # the plane (the constant environment alone gives 0.3)
+    assert hit.sum() > 0.3 * W * W
+    assert rel_diff(img[hit], ref[hit]) < 2e-6
