@@ -434,6 +434,55 @@ class Material:
         result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
         return self._finish(s, result, strict)
 
+    # ---- spectral (ABI 0.6)
+
+    def _spectral_inputs(self, first, second, names, wavelengths, uv, duv):
+        arrays, nm, widths = [first, second, wavelengths], list(names) + ["wavelengths"], [3, 3, 4]
+        if uv is not None:
+            arrays.append(uv), nm.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), nm.append("duv"), widths.append(4)
+        vecs, lead, _ = _vectors(*arrays, names=nm, widths=widths, dtype=np.float32)
+        uv_ = vecs[3] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        return vecs[0], vecs[1], vecs[2], uv_, duv_, lead
+
+    def eval_spectral(self, wi, wo, wavelengths, uv=None, duv=None, *, strict: bool = True) -> np.ndarray:
+        """BRDF values f_r(wi, wo) at four wavelengths per element (``lq_eval_spectral``):
+        ``wavelengths`` (..., 4) in nm, result (..., 4) float32, 1/sr, no cosine.
+
+        Materials with spectral physics (:data:`LOBE_SPECTRAL`: the pearl paint's thin film,
+        HTSG) are evaluated at each wavelength; every other material returns its RGB value
+        upsampled (three box bands 360-490-590-830 nm that integrate back to the RGB value).
+        Wavelengths outside 360-830 nm are clamped; a non-finite one raises
+        InvalidElementError (``result``: zero there). ``uv`` / ``duv`` as in :meth:`eval`.
+        The pdf does not depend on wavelength: use :meth:`pdf`.
+        """
+        wi_, wo_, lam, uv_, duv_, lead = self._spectral_inputs(wi, wo, ("wi", "wo"), wavelengths, uv, duv)
+        n = wi_.shape[0]
+        f = np.zeros((n, 4), np.float32)
+        s = _native.lib.lq_eval_spectral(self._h(), n, _ptr(wi_), _ptr(wo_), _ptr(uv_), _ptr(duv_), _ptr(lam), _ptr(f))
+        return self._finish(s, f.reshape(lead + (4,)), strict)
+
+    def sample_spectral(self, wo, u, wavelengths, uv=None, duv=None, *, strict: bool = True) -> Sample:
+        """:meth:`sample` with the weight at four wavelengths per element
+        (``lq_sample_spectral``): ``wavelengths`` (..., 4) in nm; the :class:`Sample`'s
+        ``weight`` is (..., 4), f_r cos(theta_i) / pdf at each wavelength; ``wi``, ``pdf`` and
+        ``flags`` are those of :meth:`sample` with the same float32 inputs.
+        """
+        wo_, u_, lam, uv_, duv_, lead = self._spectral_inputs(wo, u, ("wo", "u"), wavelengths, uv, duv)
+        n = wo_.shape[0]
+        wi = np.zeros((n, 3), np.float32)
+        weight = np.zeros((n, 4), np.float32)
+        pdf = np.zeros(n, np.float32)
+        flags = np.zeros(n, np.uint32)
+        s = _native.lib.lq_sample_spectral(
+            self._h(), n, _ptr(wo_), _ptr(u_), _ptr(uv_), _ptr(duv_), _ptr(lam), _ptr(wi), _ptr(weight), _ptr(pdf),
+            _ptr(flags)
+        )
+        result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (4,)), pdf.reshape(lead), flags.reshape(lead))
+        return self._finish(s, result, strict)
+
     def check(self, level: Union[str, int] = "quick") -> CheckResult:
         """Runs the shipped checks (reciprocity, furnace, chi2, hard cases, precision)."""
         out = c_void_p()

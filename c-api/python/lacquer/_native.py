@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 5
+ABI_MINOR = 6
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -87,6 +87,8 @@ _SIGNATURES = {
     "lq_pdf_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32]),
     "lq_eval_pdf_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32]),
     "lq_sample_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32, F32, U32]),
+    "lq_eval_spectral": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32]),
+    "lq_sample_spectral": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32, F32, F32, U32]),
     "lq_eval_one": (c_int32, [c_void_p, F32, F32, F32]),
     "lq_pdf_one": (c_int32, [c_void_p, F32, F32, F32]),
     "lq_eval_pdf_one": (c_int32, [c_void_p, F32, F32, F32, F32]),
