@@ -264,7 +264,7 @@ def test_bad_texture_value_renders_black_with_one_warning(request, variant, bad)
     one warning names the first bad value (docs/mitsuba.md, "Textures")."""
     request.getfixturevalue("scalar_rgb" if variant == "scalar_rgb" else "llvm_rgb")
     scene = mi.load_dict(scene_dict({**PIGMENT, "base_color": bitmap([bad, 0.2, 0.2], C1)}))
-    logger = mi.Thread.thread().logger()
+    logger = mi.logger()
     app = Collect()
     logger.add_appender(app)
     try:
