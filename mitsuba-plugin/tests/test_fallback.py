@@ -105,3 +105,11 @@ def test_fallback_typed_properties_equal_native(scalar_rgb, lacquer_py):
         mi.load_dict({"type": "lacquer_py", "model": "coated_paint", "flake_density": -1.0})
     with pytest.raises(RuntimeError, match="exactly one"):
         mi.load_dict({"type": "lacquer_py", "model": "lambert", "preset": "gold_flake_8"})
+
+
+def test_fallback_refuses_a_texture_by_name(scalar_rgb, lacquer_py):
+    """Textures need the native plugin: the fallback says so instead of misreading the object."""
+    lacquer_mitsuba.register(python_name="lacquer_py")
+    with pytest.raises(Exception, match='"base_color" is a texture.*native plugin'):
+        mi.load_dict({"type": "lacquer_py", "model": "coated_paint",
+                      "base_color": {"type": "checkerboard"}})

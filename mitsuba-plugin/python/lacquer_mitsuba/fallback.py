@@ -79,6 +79,11 @@ def _property_value(props, key):
     v = props[key]
     if isinstance(v, (bool, int, float, str)):
         return v
+    if isinstance(v, mi.Object):
+        raise RuntimeError(
+            f'lacquer: property "{key}" is a texture or object: the Python fallback (variant {mi.variant()}) '
+            "takes plain values only; textured base_color, flake_density and coat_roughness need the "
+            "native plugin (scalar_rgb, scalar_spectral, llvm_ad_rgb; docs/mitsuba.md, \"Textures\")")
     a = np.array(v, dtype=np.float64).ravel()
     if a.size == 3:
         return [float(x) for x in a]
