@@ -709,6 +709,62 @@ def _normal_map_image(n=64, waves=4, tilt=0.4):
     return img
 
 
+#: The two colours of the textured-parameter smoke's image (left half, right half; linear).
+TEXTURE_COLORS = ((0.70, 0.12, 0.05), (0.06, 0.22, 0.60))
+
+
+def _texture_smoke(out, scene, mat, node, export) -> dict:
+    """Textured parameters (issue 15 item 3): a two-colour Image Texture (left half, right half
+    of the plate's UV map) on the Lacquer node's Base Color renders in LACQUER and Cycles; the
+    same scene is rendered untextured with each colour as the paint's base colour, in both
+    engines, for the test to compare the halves. Also the export: the image is a scene image,
+    the material binds it, the mesh has texture uvs; and a link LACQUER cannot follow is named."""
+    import numpy as np
+
+    nodegroup = _addon_module("nodegroup")
+    rep: dict = {}
+    mat.lacquer.sparkle = False  # the mean lobe in both engines (Cycles per-cell flakes are noise at 16 spp)
+    nodegroup.update_material(mat)
+    n = 16
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[:, : n // 2, :3] = TEXTURE_COLORS[0]
+    rgba[:, n // 2:, :3] = TEXTURE_COLORS[1]
+    img = bpy.data.images.new("lacquer test halves", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709" if bpy.app.version >= (4, 0, 0) else "Linear"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tree.links.new(tex.outputs["Color"], node.inputs["Base Color"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    rep["exported"] = {"images": sorted(job["scene"].get("images", {})),
+                       "textures": paint[0].get("textures") if paint else None,
+                       "texture_uvs": any("texture_uvs" in m for m in job["scene"]["meshes"].values()),
+                       "messages": report.lines()}
+    for engine in ("LACQUER", "CYCLES"):
+        render(scene, engine, os.path.join(out, f"texture_halves_{engine.lower()}.exr"))
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    base = list(mat.lacquer.base_color)
+    for k, color in enumerate(TEXTURE_COLORS):
+        mat.lacquer.base_color = color
+        nodegroup.update_material(mat)
+        for engine in ("LACQUER", "CYCLES"):
+            render(scene, engine, os.path.join(out, f"texture_plain{k}_{engine.lower()}.exr"))
+    mat.lacquer.base_color = base
+    # A link LACQUER does not follow (a colour node on Base Color) is reported, never dropped silently.
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    tree.links.new(rgb.outputs[0], node.inputs["Base Color"])
+    report = export.Report()
+    export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["unfollowed_link_messages"] = report.lines()
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    nodegroup.update_material(mat)
+    return rep
+
+
 def artist_smoke(out: str, size: int) -> dict:
     """Artist controls (issue 15 item 2): a normal map on the node's Normal input renders in
     both engines (their shading normals compared through the Normal / Denoising Normal passes),
@@ -788,6 +844,7 @@ def artist_smoke(out: str, size: int) -> dict:
                     "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
                     "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
     rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["texture"] = _texture_smoke(out, scene, mat, node, export)
     rep["seconds"] = time.perf_counter() - t
     del np
     return rep
