@@ -723,6 +723,7 @@ def _texture_smoke(out, scene, mat, node, export) -> dict:
 
     nodegroup = _addon_module("nodegroup")
     rep: dict = {}
+    t = time.perf_counter()
     mat.lacquer.sparkle = False  # the mean lobe in both engines (Cycles per-cell flakes are noise at 16 spp)
     nodegroup.update_material(mat)
     n = 16
@@ -762,6 +763,7 @@ def _texture_smoke(out, scene, mat, node, export) -> dict:
     rep["unfollowed_link_messages"] = report.lines()
     tree.links.remove(node.inputs["Base Color"].links[0])
     nodegroup.update_material(mat)
+    rep["seconds"] = time.perf_counter() - t
     return rep
 
 
@@ -906,6 +908,7 @@ def assets_smoke(out: str, size: int) -> dict:
             "enabled": mat.lacquer.enabled, "preset": mat.lacquer.preset, "params_match": bool(same),
             "group": node.node_tree.name if node is not None else None,
             "group_version": node.node_tree.get("lacquer_version") if node is not None else None,
+            "expected_group_version": _addon_module("nodegroup").NODE_GROUP_VERSION,
             "fit_inputs": bool(mat.lacquer.fit_inputs), "coverage": node.inputs["Flake Coverage"].default_value,
             "expected_coverage": json.loads(mat.lacquer.fit_inputs).get("Flake Coverage"),
             "catalog": cat_path, "expected_catalog": catalog.asset_catalog(name), "models": models,

@@ -623,12 +623,12 @@ def test_image_texture_on_base_color_renders_in_both_engines(smokes):
             _, lq = _half_means(d / f"{name}_lacquer.exr", cols)
             _, cy = _half_means(d / f"{name}_cycles.exr", cols)
             fig[f"engines_{tag}{k}"] = abs(cy / lq - 1.0)
-    _, l0 = _half_means(d / "texture_plain0_lacquer.exr", halves[0])
-    _, l1 = _half_means(d / "texture_plain1_lacquer.exr", halves[0])
-    fig["colours_differ"] = abs(l0 / l1 - 1.0)
+    c0, _ = _half_means(d / "texture_plain0_lacquer.exr", halves[0])
+    c1, _ = _half_means(d / "texture_plain1_lacquer.exr", halves[0])
+    fig["colours_differ"] = float(np.max(np.abs(c0 / c1 - 1.0)))
     FIGURES["texture_base_color"] = fig
     print(f"\nBase Color texture: {json.dumps(fig)}")
-    # The two colours render differently (so the comparisons can fail): measured 1.6 (LACQUER).
+    # The two colours render differently (so the comparisons can fail): measured 3.0 in red.
     assert fig["colours_differ"] > 0.5, fig
     for k in range(2):
         # LACQUER: the per-element path against the material built with the half's colour; the
@@ -701,7 +701,7 @@ def test_asset_library_loads_and_an_asset_is_a_working_paint(smokes):
     assert a["background"] or all(i > 0 for i in a["icon_ids"]), a["icon_ids"]
     for name, r in a["applied"].items():
         assert r["enabled"] and r["preset"] == name and r["params_match"], (name, r)
-        assert r["group"] == "Lacquer Coated Paint" and r["group_version"] == 5, (name, r)
+        assert r["group"] == "Lacquer Coated Paint" and r["group_version"] == r["expected_group_version"], (name, r)
         assert r["fit_inputs"] and abs(r["coverage"] - r["expected_coverage"]) < 1e-6, (name, r)
         assert r["catalog"] == r["expected_catalog"], (name, r)
         assert r["models"] == ["coated_paint"], (name, r)
