@@ -40,7 +40,9 @@
 //! row 0 at v = 0; uvs, tangents and bitangents one per vertex) and
 //! `"orange_peel": {amplitude_um, wavelength_mm, metres_per_unit, coords}` (the clearcoat's
 //! waviness: a height field of that RMS height and wavelength over the per-vertex metric
-//! coordinates `coords`, in metres), and `"texture_uvs"` (per-vertex coordinates of image
+//! coordinates `coords`, in metres), `"bump": {width, height, pixels, strength, distance, uvs}`
+//! (a height image as Blender's Bump node reads it: `pixels` are `width × height` heights,
+//! `distance` world units per unit of height), and `"texture_uvs"` (per-vertex coordinates of image
 //! textures, a host's UV map; default `uvs`).
 //!
 //! A material given as JSON (named or inline) may carry `"textures"`: images on its
@@ -66,7 +68,7 @@ use crate::camera::Camera;
 use crate::env::Environment;
 use crate::geom::{v3, v3a, V3};
 use crate::lights::Light;
-use crate::perturb::{NormalMap, OrangePeel, Perturbation};
+use crate::perturb::{BumpMap, NormalMap, OrangePeel, Perturbation};
 use crate::scene::{Scene, SceneBuilder};
 use crate::shapes::{Mesh, Quad, Sphere};
 use crate::texture::{Image, ImageDesc, PaintTextures, TexturesDesc};
@@ -258,6 +260,30 @@ pub struct MeshData {
     /// Vertex coordinates of image textures (a UV map; optional, default `uvs`).
     #[serde(default)]
     pub texture_uvs: Option<Packed<f32, 2>>,
+    /// A bump map perturbing the shading normal (optional).
+    #[serde(default)]
+    pub bump: Option<BumpDesc>,
+}
+
+/// A mesh's bump map (`meshes.NAME.bump`; [`crate::perturb::BumpMap`]): a height image, the
+/// Bump node's strength and distance, and per-vertex texture coordinates.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BumpDesc {
+    /// Image width in texels.
+    pub width: usize,
+    /// Image height in texels.
+    pub height: usize,
+    /// `width × height` heights, row 0 (v = 0) first.
+    pub pixels: Packed<f32, 1>,
+    /// Strength (default 1).
+    #[serde(default = "one")]
+    pub strength: f64,
+    /// Distance: world units per unit of height (default 1; negative inverts).
+    #[serde(default = "one")]
+    pub distance: f64,
+    /// Texture coordinates per vertex.
+    pub uvs: Packed<f32, 2>,
 }
 
 /// A mesh's tangent-space normal map (`meshes.NAME.normal_map`; [`crate::perturb`]): the image
@@ -304,6 +330,7 @@ pub fn perturbation(
     n: usize,
     normal_map: Option<&NormalMapDesc>,
     orange_peel: Option<&OrangePeelDesc>,
+    bump: Option<&BumpDesc>,
 ) -> Result<Option<Box<Perturbation>>, String> {
     let mut out = Perturbation::default();
     if let Some(m) = normal_map {
@@ -356,7 +383,27 @@ pub fn perturbation(
             out.orange_peel = Some((peel, p.coords.0.iter().map(|c| c.map(f64::from)).collect()));
         }
     }
-    Ok((out.normal_map.is_some() || out.orange_peel.is_some()).then(|| Box::new(out)))
+    if let Some(m) = bump {
+        if m.width == 0 || m.height == 0 || m.width.checked_mul(m.height) != Some(m.pixels.0.len()) {
+            return Err(format!("bump: {} pixels for {}×{} texels", m.pixels.0.len(), m.width, m.height));
+        }
+        if m.uvs.0.len() != n {
+            return Err(format!("bump: uvs need one entry per position ({n})"));
+        }
+        let finite = m.pixels.0.iter().flatten().chain(m.uvs.0.iter().flatten()).all(|v| v.is_finite());
+        if !finite || !(m.strength.is_finite() && m.strength >= 0.0) || !m.distance.is_finite() {
+            return Err("bump: values must be finite and the strength >= 0".into());
+        }
+        let map = BumpMap {
+            width: m.width,
+            height: m.height,
+            texels: m.pixels.0.iter().map(|t| t[0]).collect(),
+            strength: m.strength as f32,
+            distance: m.distance as f32,
+        };
+        out.bump = Some((map, m.uvs.0.clone()));
+    }
+    Ok((out.normal_map.is_some() || out.orange_peel.is_some() || out.bump.is_some()).then(|| Box::new(out)))
 }
 
 /// A scene object.
@@ -771,8 +818,9 @@ impl SceneDesc {
                 m.uvs.as_ref().map(|v| &v.0[..]),
             )
             .map_err(|e| format!("meshes.{k}: {e}"))?;
-            mesh.perturb = perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref())
-                .map_err(|e| format!("meshes.{k}: {e}"))?;
+            mesh.perturb =
+                perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref(), m.bump.as_ref())
+                    .map_err(|e| format!("meshes.{k}: {e}"))?;
             if let Some(t) = &m.texture_uvs {
                 if t.0.len() != mesh.positions.len() || t.0.iter().flatten().any(|v| !v.is_finite()) {
                     return Err(format!(
