@@ -391,7 +391,8 @@ pub fn perturbation(
             return Err(format!("bump: uvs need one entry per position ({n})"));
         }
         let finite = m.pixels.0.iter().flatten().chain(m.uvs.0.iter().flatten()).all(|v| v.is_finite());
-        if !finite || !(m.strength.is_finite() && m.strength >= 0.0) || !m.distance.is_finite() {
+        let ok = finite && m.strength.is_finite() && m.strength >= 0.0 && m.distance.is_finite();
+        if !ok {
             return Err("bump: values must be finite and the strength >= 0".into());
         }
         let map = BumpMap {
