@@ -156,7 +156,7 @@ def normal_source(mat, report: Report):
         report.warn(f"material \"{mat.name}\": Coat Normal tilts the whole paint in LACQUER (one shading frame)")
     elif src is not None and coat is not None and coat != src:
         report.warn(f"material \"{mat.name}\": Coat Normal differs from Normal: LACQUER uses Normal for both")
-    if src is None:
+    if src is None or src.bl_idname == "ShaderNodeBump":  # a Bump node: bump_source
         return None
     if src.bl_idname != "ShaderNodeNormalMap" or src.space != "TANGENT":
         report.warn(f"material \"{mat.name}\": the Normal input comes from {src.bl_idname}"
@@ -173,6 +173,36 @@ def normal_source(mat, report: Report):
     if src.inputs["Strength"].is_linked:
         report.warn(f"material \"{mat.name}\": Normal Map Strength is connected; LACQUER uses its value")
     return tex.image, src.uv_map, float(src.inputs["Strength"].default_value)
+
+
+def bump_source(mat, report: Report):
+    """The Bump node (its Height fed by an Image Texture) connected to the Lacquer node's Normal
+    (or Coat Normal) input: ``(texture node, output name, uv_map, strength, distance)`` with the
+    distance negated by Invert, or None with a message for anything LACQUER cannot follow."""
+    from . import nodegroup
+
+    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+    if node is None:
+        return None
+    src = _linked_from(node.inputs.get("Normal")) or _linked_from(node.inputs.get("Coat Normal"))
+    if src is None or src.bl_idname != "ShaderNodeBump":
+        return None
+    height = _link_from(src.inputs["Height"])
+    if height is None or height[0].bl_idname != "ShaderNodeTexImage" or height[0].image is None:
+        kind = height[0].bl_idname if height is not None else "nothing"
+        report.warn(f"material \"{mat.name}\": the Bump node's Height comes from {kind}; LACQUER follows an Image "
+                    f"Texture with an image there (bump ignored)")
+        return None
+    tex, out = height
+    for name in ("Strength", "Distance"):
+        if src.inputs[name].is_linked:
+            report.warn(f"material \"{mat.name}\": Bump {name} is connected; LACQUER uses its value")
+    if src.inputs["Normal"].is_linked:
+        report.warn(f"material \"{mat.name}\": the Bump node's Normal input is connected; LACQUER bumps the "
+                    f"surface's normal")
+    distance = float(src.inputs["Distance"].default_value) * (-1.0 if src.invert else 1.0)
+    return (tex, out.name, _texture_uv_map(tex, mat.name, report), float(src.inputs["Strength"].default_value),
+            distance)
 
 
 def _image_rgb(image) -> tuple[int, int, np.ndarray]:
@@ -230,6 +260,19 @@ def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: R
                                        "uvs": uv, "tangents": t, "bitangents": bt}
             except (RuntimeError, ValueError) as e:
                 report.warn(f"material \"{mat.name}\": normal map not exported ({e})")
+        bump = bump_source(mat, report)
+        if bump is not None:
+            tex, out_name, uv_map, strength, distance = bump
+            try:
+                if ("rgba", tex.image.name) not in images:
+                    images[("rgba", tex.image.name)] = _image_rgba(tex.image)
+                w, h, rgb, alpha = images[("rgba", tex.image.name)]
+                heights = alpha if out_name == "Alpha" else rgb @ GREY  # Cycles' colour → float
+                extra["bump"] = {"width": w, "height": h, "pixels": heights.astype(np.float32),
+                                 "strength": strength, "distance": distance,
+                                 "uvs": _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)}
+            except (RuntimeError, ValueError) as e:
+                report.warn(f"material \"{mat.name}\": bump map not exported ({e})")
         if settings.orange_peel_um > 0.0:
             extra["orange_peel"] = {"amplitude_um": float(settings.orange_peel_um),
                                     "wavelength_mm": float(settings.orange_peel_wavelength_mm),
@@ -257,6 +300,11 @@ def _select_perturb(extra: dict, corner) -> dict:
         out["orange_peel"] = dict(p, coords=_b64(p["coords"][corner], np.float32))
     if "texture_uvs" in extra:
         out["texture_uvs"] = _b64(extra["texture_uvs"][corner], np.float32)
+    if "bump" in extra:
+        m = extra["bump"]
+        out["bump"] = {"width": m["width"], "height": m["height"], "pixels": _b64(m["pixels"], np.float32),
+                       "strength": m["strength"], "distance": m["distance"],
+                       "uvs": _b64(m["uvs"][corner], np.float32)}
     return out
 
 

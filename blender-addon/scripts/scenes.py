@@ -821,6 +821,29 @@ def artist_smoke(out: str, size: int) -> dict:
     rep["normal_map_messages"] = report.lines()
     passes("normalmap")
     tree.links.remove(node.inputs["Normal"].links[0])
+    # Image Texture (Non-Color heights, stripes along u) → Bump (Height) → Normal: the plate is
+    # 0.04 units across its UV map, h = ½ + ½ sin(2π 4 u) has slope up to 2π·2/0.04 = 314 per
+    # unit, × Distance 0.001: tilts up to atan(0.314) = 17°.
+    n = 64
+    u = (np.arange(n) + 0.5) / n
+    hgt = np.ones((n, n, 4), np.float32)
+    hgt[..., :3] = (0.5 + 0.5 * np.sin(2 * np.pi * 4 * u))[None, :, None]
+    himg = bpy.data.images.new("lacquer test heights", n, n, float_buffer=True, alpha=True)
+    himg.colorspace_settings.name = "Non-Color"
+    himg.pixels.foreach_set(hgt.reshape(-1))
+    himg.pack()
+    htex = tree.nodes.new("ShaderNodeTexImage")
+    htex.image = himg
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.001
+    tree.links.new(htex.outputs["Color"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], node.inputs["Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["bump_exported"] = any("bump" in m for m in job["scene"]["meshes"].values())
+    rep["bump_messages"] = report.lines()
+    passes("bump")
+    tree.links.remove(node.inputs["Normal"].links[0])
     # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
     mat.lacquer.orange_peel_um = 50.0
     mat.lacquer.orange_peel_wavelength_mm = 8.0
