@@ -755,6 +755,28 @@ def _texture_smoke(out, scene, mat, node, export) -> dict:
         for engine in ("LACQUER", "CYCLES"):
             render(scene, engine, os.path.join(out, f"texture_plain{k}_{engine.lower()}.exr"))
     mat.lacquer.base_color = base
+    # The same image on Flake Density and Coat Roughness (export only): Cycles' colour → float
+    # (luminance), and Coat Roughness squared to α (or a message on a smooth coat).
+    tree.links.new(tex.outputs["Color"], node.inputs["Flake Density"])
+    tree.links.new(tex.outputs["Color"], node.inputs["Coat Roughness"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    textures = paint[0].get("textures", {})
+
+    def first_texels(key):
+        b = textures.get(key)
+        if b is None:
+            return None
+        data = job["scene"]["images"][b["image"]]["pixels"]
+        px = np.frombuffer(__import__("base64").b64decode(data[len("base64:"):]), "<f4").reshape(-1, 3)
+        return [float(px[0, 0]), float(px[n // 2, 0]), float(px[n - 1, 0])]  # row 0: texels 0, 8 (right half), 15
+
+    rep["scalars"] = {"keys": sorted(textures), "flake_density": first_texels("flake_density"),
+                      "coat_roughness": first_texels("coat_roughness"), "paint_coat_roughness":
+                      float(mat.lacquer.coat_roughness), "messages": report.lines()}
+    tree.links.remove(node.inputs["Flake Density"].links[0])
+    tree.links.remove(node.inputs["Coat Roughness"].links[0])
     # A link LACQUER does not follow (a colour node on Base Color) is reported, never dropped silently.
     rgb = tree.nodes.new("ShaderNodeRGB")
     tree.links.new(rgb.outputs[0], node.inputs["Base Color"])

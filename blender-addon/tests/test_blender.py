@@ -607,6 +607,13 @@ def test_image_texture_on_base_color_renders_in_both_engines(smokes):
     assert ex["textures"] and ex["textures"]["base_color"]["image"] in ex["images"], ex
     assert ex["texture_uvs"], ex
     assert any("Base Color comes from ShaderNodeRGB" in m for m in t["unfollowed_link_messages"]), t
+    # The image on Flake Density (%) and Coat Roughness (Principled's √α) exports Cycles' colour →
+    # float conversion (Rec.709 luminance) and its square (the paint's coat is rough: 0.02).
+    sc = t["scalars"]
+    grey = [float(np.dot(c, (0.2126, 0.7152, 0.0722))) for c in ((0.70, 0.12, 0.05), (0.06, 0.22, 0.60))]
+    assert sc["keys"] == ["coat_roughness", "flake_density"], sc
+    assert np.allclose(sc["flake_density"], [grey[0], grey[1], grey[1]], rtol=1e-5), (sc, grey)
+    assert np.allclose(sc["coat_roughness"], [grey[0] ** 2, grey[1] ** 2, grey[1] ** 2], rtol=1e-5), (sc, grey)
     # 64² plate, u = 0.25 + 0.5 (x + ½)/64 across the frame; the image's halves blend (bilinear)
     # for u in [0.47, 0.53] = columns 28..36: compare columns 0..24 and 40..64.
     halves = (slice(0, 24), slice(40, 64))
