@@ -314,6 +314,24 @@ def test_llvm_lacquer_scene_symbolic(llvm_rgb, capfd, caplog):
     assert (out.out + out.err).count(SYMBOLIC_WARNING) == 1
 
 
+def test_uses_lacquer_finds_nested_bsdfs(scalar_rgb):
+    """uses_lacquer walks what `traverse` reports: BSDFs nested in blendbsdf / mask / twosided,
+    shapes inside a shape group reached through an instance; a scene without lacquer is False."""
+    lq, diffuse = lacquer_dict("white_lambert"), {"type": "diffuse"}
+    assert lacquer_mitsuba.uses_lacquer(mi.load_dict({"type": "blendbsdf", "weight": 0.5, "a": diffuse, "b": lq}))
+    assert lacquer_mitsuba.uses_lacquer(mi.load_dict({"type": "mask", "opacity": 0.5, "b": {"type": "twosided", "n": lq}}))
+    assert not lacquer_mitsuba.uses_lacquer(mi.load_dict({"type": "blendbsdf", "weight": 0.5, "a": diffuse, "b": diffuse}))
+
+    def instanced(bsdf):
+        return mi.load_dict({"type": "scene", "g": {"type": "shapegroup", "s": {"type": "sphere", "bsdf": bsdf}},
+                             "i": {"type": "instance", "shapegroup": {"type": "ref", "id": "g"}}})
+
+    assert lacquer_mitsuba.uses_lacquer(instanced(lq)) and not lacquer_mitsuba.uses_lacquer(instanced(diffuse))
+    # Scalar variants have no symbolic mode: render() is mi.render.
+    scene = small_scene(lq, spp=1)
+    assert np.array_equal(np.array(lacquer_mitsuba.render(scene, seed=1)), np.array(mi.render(scene, seed=1)))
+
+
 def test_llvm_wavefront_render(llvm_rgb):
     with lacquer_mitsuba.wavefront():
         img = np.array(mi.render(small_scene(lacquer_dict({"model": "lambert", "albedo": 0.8})), seed=3))
