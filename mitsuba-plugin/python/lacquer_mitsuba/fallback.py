@@ -24,7 +24,7 @@ import mitsuba as mi
 
 #: What the BSDF logs (once per object) when traced symbolically; the native plugin says the same.
 _SYMBOLIC_WARNING = (
-    "lacquer (Python fallback): a lacquer BSDF is being traced inside a symbolic Dr.Jit loop or call "
+    "lacquer (Python fallback): the lacquer BSDF \"{}\" is being traced inside a symbolic Dr.Jit loop or call "
     "(Mitsuba's default in JIT variants), where it evaluates to zero (black) and its samples are "
     "invalid. Harmless if the scene being rendered does not use it (a symbolic call traces every "
     "live BSDF). To render a scene that uses it, use wavefront mode: lacquer_mitsuba.render(scene, ...), "
@@ -190,7 +190,7 @@ def _make_class():
                 return False
             if not getattr(self, "_warned_symbolic", False):
                 self._warned_symbolic = True
-                mi.Log(mi.LogLevel.Warn, _SYMBOLIC_WARNING)
+                mi.Log(mi.LogLevel.Warn, _SYMBOLIC_WARNING.format(self.id() or "(no id)"))
             return True
 
         def _tinted(self, value, si, active):
