@@ -23,7 +23,8 @@
 // (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
 // the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
 // write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
-// with dr.JitFlag.SymbolicLoops and SymbolicCalls off).
+// with dr.JitFlag.SymbolicLoops and SymbolicCalls off; traced symbolically the plugin returns
+// zero / an invalid sample and warns once per object, see symbolic_scope()).
 //
 // Parameters (see docs/mitsuba.md):
 //   model      string   a Lacquer model name (`lacquer models`), e.g. "coated_paint"
@@ -439,7 +440,9 @@ public:
                 value *= m_tint->eval(si, active);
             return { bs, depolarizer<Spectrum>(value) };
         } else {
-            size_t n = batch_begin("sample", si.wi, sample1, sample2, active);
+            if (symbolic_scope())
+                return { bs, 0.f }; // invalid sample: pdf 0, value 0
+            size_t n = batch_width(si.wi, sample1, sample2, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
             if (!spatial) {
@@ -624,7 +627,9 @@ private:
             }
             return { depolarizer<Spectrum>(value), pdf };
         } else {
-            size_t n = batch_begin("eval/pdf", si.wi, wo, active);
+            if (symbolic_scope())
+                return { 0.f, 0.f };
+            size_t n = batch_width(si.wi, wo, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
             if (!spatial) {
@@ -918,14 +923,32 @@ private:
 
     // ---- JIT variants: the batched path -------------------------------------------------
 
+    /// True when Dr.Jit is tracing this call symbolically (a symbolic loop or virtual call:
+    /// Mitsuba's default in llvm variants). The library cannot run on symbolic arrays, so the
+    /// callers return zero (eval, pdf) or an invalid sample there. A symbolic virtual call
+    /// traces every live BSDF of the variant (Dr.Jit's registry holds no notion of which
+    /// scene an object belongs to), so an object not used by the scene being rendered gets
+    /// here too: its zero is never selected and that render is unchanged. One warning per
+    /// object names the fix for scenes that do use it.
+    bool symbolic_scope() const {
+        if (!jit_flag(JitFlag::SymbolicScope))
+            return false;
+        if (!m_warned_symbolic.exchange(true))
+            Log(Warn, "lacquer: the lacquer BSDF \"%s\" (model %s) is being traced inside a symbolic "
+                      "Dr.Jit loop or call (Mitsuba's default in llvm variants), where it evaluates to "
+                      "zero (black) and its samples are invalid. Harmless if the scene being rendered "
+                      "does not use it (a symbolic call traces every live BSDF). To render a scene that "
+                      "uses it, use wavefront mode: lacquer_mitsuba.render(scene, ...), or "
+                      "`with lacquer_mitsuba.wavefront(): mi.render(scene)`, i.e. "
+                      "dr.set_flag(dr.JitFlag.SymbolicLoops, False) and "
+                      "dr.set_flag(dr.JitFlag.SymbolicCalls, False) (docs/mitsuba.md). Shown once "
+                      "per object.", this->id().empty() ? std::string("(no id)") : std::string(this->id()), m_model);
+        return true;
+    }
+
+    /// Width of a batch: the widest operand (width-1 operands are broadcast).
     template <typename... Ts>
-    size_t batch_begin(const char *what, const Ts &...values) const {
-        if (jit_flag(JitFlag::SymbolicScope))
-            Throw("lacquer: %s was called inside a symbolic Dr.Jit scope. The lacquer plugin calls "
-                  "the Lacquer C library on evaluated arrays and cannot run inside symbolic loops "
-                  "or calls: render in wavefront mode with "
-                  "dr.set_flag(dr.JitFlag.SymbolicLoops, False) and "
-                  "dr.set_flag(dr.JitFlag.SymbolicCalls, False) (see docs/mitsuba.md).", what);
+    static size_t batch_width(const Ts &...values) {
         size_t n = 1;
         ((n = std::max(n, (size_t) dr::width(values))), ...);
         return n;
@@ -1231,6 +1254,8 @@ private:
     ref<Texture> m_tex_color, m_tex_density, m_tex_roughness;
     /// Set once an invalid per-element value was reported (one warning per material).
     mutable std::atomic<bool> m_warned{ false };
+    /// symbolic_scope() has warned (once per object).
+    mutable std::atomic<bool> m_warned_symbolic{ false };
     float m_diffuse[3] = { 0.f, 0.f, 0.f };
     bool m_footprint = true, m_spatial = false, m_has_smooth = true, m_has_delta = false;
     uint32_t m_smooth_type = 0, m_smooth_sampled = 0, m_delta_component = 1, m_lobes = 0;
