@@ -29,6 +29,10 @@ Scenes:
             groups, bad edits (invalid JSON, out-of-range values) keeping the previous paint
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
             also writes a side-by-side PNG (Cycles | LACQUER) with --png
+  shots     the README screenshots into --img-dir (PNG): the asset library as a contact sheet,
+            orange peel and a normal map (LACQUER), a textured Base Color (Cycles | LACQUER),
+            flakes on a parented, scaled instance (Cycles | LACQUER), LACQUER's passes and the
+            compositor's Denoise node; panels --shot-size px at --shot-spp (readme-image.sh)
 
 With --render-blend FILE (no --zip needed, nothing installed) it only opens FILE and renders
 its scene with Cycles into --out: a farm node without the extension.
@@ -1403,7 +1407,8 @@ def shots(out: str, img_dir: str, size: int, spp: int) -> dict:
     SHOT_SIZE, SHOT_SPP = size, spp
     os.makedirs(img_dir, exist_ok=True)
     rep = {}
-    for name, fn in (("library", lambda: shot_library(out, img_dir, 640)), ("surface", lambda: shot_surface(out, img_dir)),
+    for name, fn in (("library", lambda: shot_library(out, img_dir, 640)),
+                     ("surface", lambda: shot_surface(out, img_dir)),
                      ("texture", lambda: shot_texture(out, img_dir)),
                      ("flakescale", lambda: shot_flakescale(out, img_dir)),
                      ("passes", lambda: shot_passes(out, img_dir))):
