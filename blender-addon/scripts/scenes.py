@@ -1158,17 +1158,18 @@ def _srgb(rgb):
     return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
 
 
-def panels_png(panels, out: str, gap: int = 4, linear=True):
-    """Panels (h, w, ≥3 arrays, top row first, scene-linear unless ``linear`` is False) side by
-    side with a white gap, written as an 8-bit sRGB PNG (Standard view transform)."""
+def panels_png(panels, out: str, gap: int = 4, display=()):
+    """Panels (h, w, ≥3 arrays, top row first, scene-linear except the indices in ``display``,
+    which are already display values in [0, 1]) side by side with a white gap, written as an
+    8-bit sRGB PNG (Standard view transform)."""
     import numpy as np
 
     h = max(p.shape[0] for p in panels)
     w = sum(p.shape[1] for p in panels) + gap * (len(panels) - 1)
     canvas = np.ones((h, w, 4), np.float32)
     x = 0
-    for p in panels:
-        rgb = _srgb(p[..., :3]) if linear else np.clip(p[..., :3], 0.0, 1.0)
+    for k, p in enumerate(panels):
+        rgb = np.clip(p[..., :3], 0.0, 1.0) if k in display else _srgb(p[..., :3])
         canvas[: p.shape[0], x: x + p.shape[1], :3] = rgb
         x += p.shape[1] + gap
     img = bpy.data.images.new(os.path.basename(out), w, h, alpha=False)
@@ -1372,10 +1373,8 @@ def shot_passes(out, img_dir):
         img, rep[tag] = _shot_render(scene, "LACQUER", out, f"passes_{tag}")
         if tag == "normal":
             img = img.copy()
-            img[..., :3] = 0.5 + 0.5 * img[..., :3]
-            panels.append((img, False))
-        else:
-            panels.append(img)
+            img[..., :3] = 0.5 + 0.5 * img[..., :3]  # a display value, not scene-linear
+        panels.append(img)
     try:
         rep["rl_outputs"] = compositor(scene, "Image", denoise=True)
         img, rep["denoised"] = _shot_render(scene, "LACQUER", out, "passes_denoised")
@@ -1385,19 +1384,7 @@ def shot_passes(out, img_dir):
         rep["denoise"] = f"unavailable: {e}"
         print(f"Denoise node unavailable: {e}", flush=True)
     disable_compositor(scene)
-    import numpy as np
-
-    # The normal panel is display-ready (not scene-linear): convert it back so one writer fits all.
-    fixed = []
-    for p in panels:
-        if isinstance(p, tuple):
-            rgb = np.clip(p[0][..., :3], 0.0, 1.0)
-            lin = p[0].copy()
-            lin[..., :3] = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-            fixed.append(lin)
-        else:
-            fixed.append(p)
-    rep["png"] = panels_png(fixed, os.path.join(img_dir, "blender-passes.png"))
+    rep["png"] = panels_png(panels, os.path.join(img_dir, "blender-passes.png"), display=(2,))
     return rep
 
 
