@@ -22,7 +22,7 @@ use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
 use crate::models::{above_or_up, checked_sample, KernelVisitor, LaneKernel, Model};
-use crate::paint::varying::{Element, PaintTexture, VaryingPaint};
+use crate::paint::varying::{Element, PaintTexture, Vary, VaryingPaint};
 use crate::real::Real;
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -1005,7 +1005,8 @@ unsafe fn load_element<L: Lanes>(
     };
     let c = density.map_or(L::c(c0), |d| lanes::select(ok, d * L::c(0.01), L::c(c0)));
     let alpha = alpha.map_or(L::c(a0), |a| lanes::select(ok, a, L::c(if vp.varies_alpha() { 0.1 } else { a0 })));
-    (vp.element(rho, c, alpha), ok)
+    let vary = Vary { rho: tex.base_color.is_some(), c: tex.flake_density.is_some() };
+    (vp.element(rho, c, alpha, vary), ok)
 }
 
 #[inline(always)]
@@ -1039,13 +1040,25 @@ fn eval_pdf_varying_kernel<L: Lanes>(
         let keep = on & ok & p_ok;
         let above = lanes::gt(a.z, L::c(HORIZON_COS)) & lanes::gt(o.z, L::c(HORIZON_COS));
         let (a, o) = (above_or_up(above, a), above_or_up(above, o));
-        if let Some(f) = f {
-            let v = Rgb::select(keep & above, vp.eval_lanes(&e, a, o), Rgb::zero());
-            unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
-        }
-        if let Some(pdf) = pdf {
-            let v = lanes::keep(keep & above, vp.pdf_lanes(&e, a, o));
-            unsafe { store1(pdf, start, width, v) };
+        let keep = keep & above;
+        match (f, pdf) {
+            (Some(f), Some(pdf)) => {
+                let (v, p) = vp.eval_pdf_lanes(&e, a, o);
+                let v = Rgb::select(keep, v, Rgb::zero());
+                unsafe {
+                    store3(f, start, width, [v.r, v.g, v.b]);
+                    store1(pdf, start, width, lanes::keep(keep, p));
+                }
+            }
+            (Some(f), None) => {
+                let v = Rgb::select(keep, vp.eval_lanes(&e, a, o), Rgb::zero());
+                unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
+            }
+            (None, Some(pdf)) => {
+                let v = lanes::keep(keep, vp.pdf_lanes(&e, a, o));
+                unsafe { store1(pdf, start, width, v) };
+            }
+            (None, None) => {}
         }
         start += width;
     }
