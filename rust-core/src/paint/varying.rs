@@ -14,7 +14,7 @@
 //!
 //! `coat_roughness` changes the coat lobe (evaluated per element with its own α) and,
 //! nonlinearly, the coat's transmittance `1 − E_top(μ)` and the escape probabilities inside
-//! the tables: those are tabulated over [`ALPHA_NODES`] nodes uniform in `√α` on
+//! the tables: those are tabulated over [`ALPHA_NODES`] nodes uniform in `ln α` on
 //! `[0.001, 0.5]` and interpolated linearly (the interpolation error is measured in the tests
 //! and `docs/speed.md`). A per-element roughness needs a rough coat: elements must lie in
 //! `[0.001, 0.5]` (a smooth coat's delta lobe cannot blend into a rough one).
@@ -81,7 +81,7 @@ impl<E> PaintTexture<'_, E> {
 }
 
 /// Number of `α` nodes of the tables when `coat_roughness` varies.
-pub const ALPHA_NODES: usize = 16;
+pub const ALPHA_NODES: usize = 32;
 /// Smallest per-element coat roughness.
 pub const ALPHA_MIN: f64 = 0.001;
 /// Largest per-element coat roughness.
@@ -93,13 +93,13 @@ const E_NODES: usize = 64;
 /// Basecoat samples behind each table node (as the material's).
 const SAMPLES: usize = 2048;
 
-/// The coat α of grid node `j` (`j < ALPHA_NODES`): nodes uniform in `√α` on
-/// `[ALPHA_MIN, ALPHA_MAX]`.
+/// The coat α of grid node `j` (`j < ALPHA_NODES`): nodes uniform in `ln α` on
+/// `[ALPHA_MIN, ALPHA_MAX]` (the tables' interpolation error goes as the square of the node
+/// spacing in `ln α` over the whole range; docs/speed.md).
 #[must_use]
 pub fn alpha_node(j: usize) -> f64 {
-    let (s0, s1) = (ALPHA_MIN.sqrt(), ALPHA_MAX.sqrt());
-    let s = s0 + (s1 - s0) * j as f64 / (ALPHA_NODES - 1) as f64;
-    (s * s).clamp(ALPHA_MIN, ALPHA_MAX)
+    let (l0, l1) = (ALPHA_MIN.ln(), ALPHA_MAX.ln());
+    (l0 + (l1 - l0) * j as f64 / (ALPHA_NODES - 1) as f64).exp().clamp(ALPHA_MIN, ALPHA_MAX)
 }
 
 /// A flat table read per lane: f64 values for the reference path, f32 (padded) for SIMD.
@@ -282,8 +282,8 @@ pub(crate) struct Element<L: Lanes> {
 pub struct VaryingPaint {
     /// The material's coat (its α-independent parts, and its lobe when α does not vary).
     coat: Coat,
-    /// `√α` of the nodes (one node, the material's α, when α does not vary).
-    alpha_sqrt: Vec<f64>,
+    /// `ln α` of the nodes (one node, the material's α, when α does not vary).
+    alpha_ln: Vec<f64>,
     /// `E_top(μ)` per α node (`E_NODES` each); unused when α does not vary.
     e_top: Flat,
     /// The layer tables per [`Vary::index`].
@@ -319,7 +319,8 @@ impl VaryingPaint {
         use rayon::prelude::*;
         let coat = paint.coat().clone();
         let eta = coat.ior;
-        let alphas: Vec<f64> = if vary_alpha { (0..ALPHA_NODES).map(alpha_node).collect() } else { vec![coat.roughness] };
+        let alphas: Vec<f64> =
+            if vary_alpha { (0..ALPHA_NODES).map(alpha_node).collect() } else { vec![coat.roughness] };
         let coats: Vec<Coat> = if vary_alpha {
             let thickness_um = coat.thickness_mm * 1e3;
             alphas.par_iter().map(|&a| Coat::new(eta, a, thickness_um, coat.absorption_per_mm)).collect()
@@ -393,7 +394,7 @@ impl VaryingPaint {
         let mean = |c: [f64; 3]| (c[0] + c[1] + c[2]) / 3.0;
         let pearl_t_sel = pearl_transmission.as_ref().map_or(0.0, |t| mean(t.eval::<f64>(1.0)).powi(2));
         Self {
-            alpha_sqrt: alphas.iter().map(|a| a.sqrt()).collect(),
+            alpha_ln: alphas.iter().map(|a| a.ln()).collect(),
             coat,
             e_top: Flat::new(e_top),
             folded,
@@ -415,7 +416,7 @@ impl VaryingPaint {
     /// True when the coat roughness varies per element (the tables span the α grid).
     #[must_use]
     pub fn varies_alpha(&self) -> bool {
-        self.alpha_sqrt.len() > 1
+        self.alpha_ln.len() > 1
     }
 
     /// The material's values `(base_color, flake coverage 0..1, coat α)`, used for the
@@ -463,7 +464,14 @@ impl VaryingPaint {
 
     /// `f` and pdf of one element (f64; tests).
     #[must_use]
-    pub fn eval_pdf_one(&self, rho: [f64; 3], coverage: f64, alpha: f64, wi: Vec3<f64>, wo: Vec3<f64>) -> (Rgb<f64>, f64) {
+    pub fn eval_pdf_one(
+        &self,
+        rho: [f64; 3],
+        coverage: f64,
+        alpha: f64,
+        wi: Vec3<f64>,
+        wo: Vec3<f64>,
+    ) -> (Rgb<f64>, f64) {
         let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
         self.eval_pdf_lanes(&e, wi, wo)
     }
@@ -493,10 +501,10 @@ impl VaryingPaint {
         let zero = L::c(0.0);
         let one = L::c(1.0);
         let at = if self.varies_alpha() {
-            let n = self.alpha_sqrt.len();
-            let (s0, s1) = (self.alpha_sqrt[0], self.alpha_sqrt[n - 1]);
+            let n = self.alpha_ln.len();
+            let (s0, s1) = (self.alpha_ln[0], self.alpha_ln[n - 1]);
             let x = lanes::clamp(
-                (lanes::sqrt(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
+                (lanes::ln(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
                 zero,
                 L::c((n - 1) as f64),
             );
@@ -928,8 +936,8 @@ fn fold(basis: &[ComponentTables], vary: Vary, rho0: [f64; 3], c0: f64) -> Folde
             .find(|s| s.factors() == (has_rho && vary.rho, has_c && vary.c))
             .expect("every factor pair is a slot");
         let j = slots.iter().position(|&s| s == slot).expect("the slot is kept");
-        for c in 0..3 {
-            let k = if has_rho && !vary.rho { rho0[c] } else { 1.0 } * if has_c && !vary.c { c0 } else { 1.0 };
+        for (c, &r0) in rho0.iter().enumerate() {
+            let k = if has_rho && !vary.rho { r0 } else { 1.0 } * if has_c && !vary.c { c0 } else { 1.0 };
             if k == 0.0 {
                 continue;
             }
@@ -1046,8 +1054,8 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
     for j in 0..na {
         let rest: Vec<[f64; 3]> = (0..NODES).map(|k| per_node[k][j].1).collect();
         let avg = MuTable::from_values(rest).cosine_average();
-        for c in 0..3 {
-            t.r_avg[c][j] = avg[c];
+        for (c, &a) in avg.iter().enumerate() {
+            t.r_avg[c][j] = a;
             for (k, node) in per_node.iter().enumerate() {
                 t.a1[c][j * NODES + k] = node[j].0[c];
                 t.r[c][j * NODES + k] = node[j].1[c];
