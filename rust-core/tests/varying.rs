@@ -255,7 +255,8 @@ fn alpha_interpolation_error_against_fixed_alpha_tables() {
     for paint in [PAINTS[0], PAINTS[2]] {
         let m = Material::from_json(paint).unwrap();
         let grid = m.varying_paint(true).unwrap();
-        for e in elements(&off_nodes) {
+        // Every α with every colour and density (5 elements per call of `elements`).
+        for e in elements(&off_nodes).into_iter().chain(elements(&off_nodes[1..])) {
             let mat = material_for(paint, e, true);
             let fixed = mat.varying_paint(false).unwrap();
             let mut w = [0.0f64; 4];

@@ -6,8 +6,11 @@
 //! `f_b = ρ(1−c−c_p)(1−m)·f_pig + ρ c_p·f_pig,pearl + (1−c−c_p)m·[ρ f_metal,F0=1 + (1−ρ) f_metal,F0=0]
 //! + c·f_flake,unit + f_pearl-flakes` (Schlick is linear in `F0`). The layer tables `A1(μ)` and
 //! `U(μ) − A1(μ)` of [`super::coated_paint`] and the basecoat's mean albedo `ρ̄` are integrals
-//! of `f_b`, hence the same linear combinations of per-component tables ([`VaryingPaint`] holds
-//! one per component, estimated with that component's own sampler). Per element only weights
+//! of `f_b`, hence the same linear combinations of per-component tables (estimated with each
+//! component's own sampler). The weights are bilinear in `ρ` and `c`, so [`VaryingPaint`] keeps
+//! the basis tables `T₁ + ρ T_ρ + c T_c + ρc T_ρc`, with the parameters a call does not vary
+//! folded in (a textured colour alone reads two tables per channel, the untextured paint one).
+//! Per element only weights
 //! are formed; the bounce factor `τ̄²ρ̄e / (1 − τ̄²ρ̄(1 − e))` and the multiple-scatter lobe's
 //! normalisation are closed forms of them. The basecoat's lobe-selection weights are closed
 //! forms too, so `pdf` and `sample` are the per-element material's.
@@ -171,7 +174,8 @@ enum Kind {
 
 /// The per-element factor of a basis table: every component weight is bilinear in the
 /// pigment colour `ρ` (per channel) and the flake coverage `c`, so each layer table is
-/// `T₁ + ρ T_ρ + c T_c + ρc T_ρc`.
+/// `T₁ + ρ T_ρ + c T_c + ρc T_ρc` (the uncovered fraction `1 − c − c_p` unclamped: valid
+/// elements have `c + c_p ≤ 1 + 1e-6`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Coef {
     One,
