@@ -345,19 +345,13 @@ mod tests {
             p.as_mut_ptr(),
         );
         assert_eq!(st, LQ_ERR_INVALID_ARGUMENT, "{}", last_error());
-        let st = eval_varying(m, n, &wi, &wo, [None, None, None], Some(&dens[..]), [null; 3], null);
-        assert_eq!(st, LQ_ERR_NULL, "{}", last_error());
-        let st = eval_varying(
-            std::ptr::null(),
-            n,
-            &wi,
-            &wo,
-            [None, None, None],
-            Some(&dens[..]),
-            [fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()],
-            p.as_mut_ptr(),
-        );
-        assert_eq!(st, LQ_ERR_NULL);
+        // A density texture alone, on material `mat` into `f`, `pdf`.
+        let density_only = |mat: *const lq_material, f: [*mut f32; 3], pdf: *mut f32| {
+            eval_varying(mat, n, &wi, &wo, [None, None, None], Some(&dens[..]), f, pdf)
+        };
+        assert_eq!(density_only(m, [null; 3], null), LQ_ERR_NULL, "{}", last_error());
+        let (f_out, p_out) = ([fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()], p.as_mut_ptr());
+        assert_eq!(density_only(std::ptr::null(), f_out, p_out), LQ_ERR_NULL);
         // Sampling: coat roughness out of range on element 2; NULL flags allowed.
         let u = [vec![0.3f32; n], vec![0.6f32; n], vec![0.2f32; n]];
         let mut rough = vec![0.05f32; n];
@@ -403,17 +397,7 @@ mod tests {
         unsafe { lq_material_free(m) };
         // A texture on another model is an argument error, not a panic.
         let l = load(r#"{"model": "lambert"}"#);
-        let st = eval_varying(
-            l,
-            n,
-            &wi,
-            &wo,
-            [None, None, None],
-            Some(&dens[..]),
-            [fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()],
-            p.as_mut_ptr(),
-        );
-        assert_eq!(st, LQ_ERR_INVALID_ARGUMENT);
+        assert_eq!(density_only(l, f_out, p_out), LQ_ERR_INVALID_ARGUMENT);
         assert!(last_error().contains("coated_paint"), "{}", last_error());
         unsafe { lq_material_free(l) };
     }
