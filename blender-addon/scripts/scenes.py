@@ -709,6 +709,86 @@ def _normal_map_image(n=64, waves=4, tilt=0.4):
     return img
 
 
+#: The two colours of the textured-parameter smoke's image (left half, right half; linear).
+TEXTURE_COLORS = ((0.70, 0.12, 0.05), (0.06, 0.22, 0.60))
+
+
+def _texture_smoke(out, scene, mat, node, export) -> dict:
+    """Textured parameters (issue 15 item 3): a two-colour Image Texture (left half, right half
+    of the plate's UV map) on the Lacquer node's Base Color renders in LACQUER and Cycles; the
+    same scene is rendered untextured with each colour as the paint's base colour, in both
+    engines, for the test to compare the halves. Also the export: the image is a scene image,
+    the material binds it, the mesh has texture uvs; and a link LACQUER cannot follow is named."""
+    import numpy as np
+
+    nodegroup = _addon_module("nodegroup")
+    rep: dict = {}
+    t = time.perf_counter()
+    mat.lacquer.sparkle = False  # the mean lobe in both engines (Cycles per-cell flakes are noise at 16 spp)
+    nodegroup.update_material(mat)
+    n = 16
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[:, : n // 2, :3] = TEXTURE_COLORS[0]
+    rgba[:, n // 2:, :3] = TEXTURE_COLORS[1]
+    img = bpy.data.images.new("lacquer test halves", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709" if bpy.app.version >= (4, 0, 0) else "Linear"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tree.links.new(tex.outputs["Color"], node.inputs["Base Color"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    rep["exported"] = {"images": sorted(job["scene"].get("images", {})),
+                       "textures": paint[0].get("textures") if paint else None,
+                       "texture_uvs": any("texture_uvs" in m for m in job["scene"]["meshes"].values()),
+                       "messages": report.lines()}
+    for engine in ("LACQUER", "CYCLES"):
+        render(scene, engine, os.path.join(out, f"texture_halves_{engine.lower()}.exr"))
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    base = list(mat.lacquer.base_color)
+    for k, color in enumerate(TEXTURE_COLORS):
+        mat.lacquer.base_color = color
+        nodegroup.update_material(mat)
+        for engine in ("LACQUER", "CYCLES"):
+            render(scene, engine, os.path.join(out, f"texture_plain{k}_{engine.lower()}.exr"))
+    mat.lacquer.base_color = base
+    # The same image on Flake Density and Coat Roughness (export only): Cycles' colour → float
+    # (luminance), and Coat Roughness squared to α (or a message on a smooth coat).
+    tree.links.new(tex.outputs["Color"], node.inputs["Flake Density"])
+    tree.links.new(tex.outputs["Color"], node.inputs["Coat Roughness"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    textures = paint[0].get("textures", {})
+
+    def first_texels(key):
+        b = textures.get(key)
+        if b is None:
+            return None
+        data = job["scene"]["images"][b["image"]]["pixels"]
+        px = np.frombuffer(__import__("base64").b64decode(data[len("base64:"):]), "<f4").reshape(-1, 3)
+        return [float(px[0, 0]), float(px[n // 2, 0]), float(px[n - 1, 0])]  # row 0: texels 0, 8 (right half), 15
+
+    rep["scalars"] = {"keys": sorted(textures), "flake_density": first_texels("flake_density"),
+                      "coat_roughness": first_texels("coat_roughness"), "paint_coat_roughness":
+                      float(mat.lacquer.coat_roughness), "messages": report.lines()}
+    tree.links.remove(node.inputs["Flake Density"].links[0])
+    tree.links.remove(node.inputs["Coat Roughness"].links[0])
+    # A link LACQUER does not follow (a colour node on Base Color) is reported, never dropped silently.
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    tree.links.new(rgb.outputs[0], node.inputs["Base Color"])
+    report = export.Report()
+    export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["unfollowed_link_messages"] = report.lines()
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    nodegroup.update_material(mat)
+    rep["seconds"] = time.perf_counter() - t
+    return rep
+
+
 def artist_smoke(out: str, size: int) -> dict:
     """Artist controls (issue 15 item 2): a normal map on the node's Normal input renders in
     both engines (their shading normals compared through the Normal / Denoising Normal passes),
@@ -763,6 +843,29 @@ def artist_smoke(out: str, size: int) -> dict:
     rep["normal_map_messages"] = report.lines()
     passes("normalmap")
     tree.links.remove(node.inputs["Normal"].links[0])
+    # Image Texture (Non-Color heights, stripes along u) → Bump (Height) → Normal: the plate is
+    # 0.04 units across its UV map, h = ½ + ½ sin(2π 4 u) has slope up to 2π·2/0.04 = 314 per
+    # unit, × Distance 0.001: tilts up to atan(0.314) = 17°.
+    n = 64
+    u = (np.arange(n) + 0.5) / n
+    hgt = np.ones((n, n, 4), np.float32)
+    hgt[..., :3] = (0.5 + 0.5 * np.sin(2 * np.pi * 4 * u))[None, :, None]
+    himg = bpy.data.images.new("lacquer test heights", n, n, float_buffer=True, alpha=True)
+    himg.colorspace_settings.name = "Non-Color"
+    himg.pixels.foreach_set(hgt.reshape(-1))
+    himg.pack()
+    htex = tree.nodes.new("ShaderNodeTexImage")
+    htex.image = himg
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.001
+    tree.links.new(htex.outputs["Color"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], node.inputs["Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["bump_exported"] = any("bump" in m for m in job["scene"]["meshes"].values())
+    rep["bump_messages"] = report.lines()
+    passes("bump")
+    tree.links.remove(node.inputs["Normal"].links[0])
     # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
     mat.lacquer.orange_peel_um = 50.0
     mat.lacquer.orange_peel_wavelength_mm = 8.0
@@ -788,6 +891,7 @@ def artist_smoke(out: str, size: int) -> dict:
                     "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
                     "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
     rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["texture"] = _texture_smoke(out, scene, mat, node, export)
     rep["seconds"] = time.perf_counter() - t
     del np
     return rep
@@ -849,6 +953,7 @@ def assets_smoke(out: str, size: int) -> dict:
             "enabled": mat.lacquer.enabled, "preset": mat.lacquer.preset, "params_match": bool(same),
             "group": node.node_tree.name if node is not None else None,
             "group_version": node.node_tree.get("lacquer_version") if node is not None else None,
+            "expected_group_version": _addon_module("nodegroup").NODE_GROUP_VERSION,
             "fit_inputs": bool(mat.lacquer.fit_inputs), "coverage": node.inputs["Flake Coverage"].default_value,
             "expected_coverage": json.loads(mat.lacquer.fit_inputs).get("Flake Coverage"),
             "catalog": cat_path, "expected_catalog": catalog.asset_catalog(name), "models": models,

@@ -3,14 +3,11 @@
 //! every SIMD level this CPU has, with masked lanes, invalid parameters and lengths that are
 //! not a multiple of the lane count.
 
+use crate::GLOBAL;
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, SimdLevel, Src3, SAMPLE_FAILED, SAMPLE_INVALID_INPUT};
 use lacquer::paint::varying::{alpha_node, PaintTexture};
 use lacquer::rng::Pcg32;
 use lacquer::{Material, Vec3};
-use std::sync::Mutex;
-
-/// The SIMD level is process-wide: tests that change it take turns.
-static GLOBAL: Mutex<()> = Mutex::new(());
 
 /// Paints covering the basecoat's components: rough coat with flakes; smooth absorbing coat;
 /// pearl flakes with a metallic base.
@@ -517,7 +514,7 @@ fn no_texture_is_the_material_and_bad_inputs_are_errors() {
 
 /// Cost of per-element parameters against the untextured paint (docs/speed.md): ns per
 /// element of `eval_pdf` and `eval_pdf_varying` (f, pdf) at the detected SIMD level, one
-/// thread. Not a CI test: `cargo test --release -p lacquer --test varying -- --ignored --nocapture cost`.
+/// thread. Not a CI test: `cargo test --release -p lacquer --test integration -- --ignored --nocapture varying::cost`.
 #[test]
 #[ignore]
 fn cost_against_the_untextured_paint() {
