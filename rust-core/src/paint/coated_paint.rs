@@ -52,7 +52,7 @@
 //! transmittance τ̄). The position-free Monte Carlo reference ([`super::position_free_mc`])
 //! measures their cost (`docs/paint-validation.md`): for a smooth coat over a Lambertian base
 //! the model is exact (the M lobe reduces to the bounce series) and agrees within the
-//! reference's noise; an absorbing coat is 0.7 % off; flakes and pearlescent flakes 1–3 % on
+//! reference's noise; an absorbing coat is 0.7 % off; flakes and pearlescent flakes 1–2 % on
 //! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
 //! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
 //! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
@@ -209,8 +209,9 @@ const TABLE_NODES: usize = 48;
 /// Low-discrepancy basecoat samples behind each table node.
 const TABLE_SAMPLES: usize = 2048;
 /// Halton-Hammersley points behind the basecoat's mean albedo `ρ̄` ([`mean_albedo`]): 4× a
-/// table node's, as ρ̄ scales every bounce (0.1–0.3 % from a 4M-sample estimate for the
-/// flaked paints, 1.5 % for a dark α 0.05 metal base; +8 % to the table's construction).
+/// table node's, as ρ̄ scales every bounce (within 0.2 % of a 1M-sample Monte Carlo for the
+/// flaked paints and EON, 1.5 % for a dark α 0.05 metal base; +8 % to the table's
+/// construction).
 pub(crate) const MEAN_ALBEDO_SAMPLES: usize = 4 * TABLE_SAMPLES;
 
 fn build(p: &Params) -> Result<Model, Error> {
