@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Smoke run of the four fuzz targets (docs/reliability.md): each target runs for
-# LACQUER_FUZZ_SECONDS (default 15 s, so ~60 s of fuzzing in total) from its committed corpus
+# LACQUER_FUZZ_SECONDS (default 10 s, so ~40 s of fuzzing in total) from its committed corpus
 # (fuzz/corpus/<target>, read only: new inputs go to a temporary directory), with hangs
 # (-timeout) and allocation blow-ups (-rss_limit_mb, -malloc_limit_mb) counted as failures.
 # Any crash, hang or leak fails the script; libFuzzer's reproducer is printed.
@@ -10,7 +10,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cd "$here"
-seconds="${LACQUER_FUZZ_SECONDS:-15}"
+seconds="${LACQUER_FUZZ_SECONDS:-10}"
 targets=(material_json merl_table render_scene capi_calls)
 
 if ! rustup run nightly rustc --version >/dev/null 2>&1; then

@@ -60,12 +60,20 @@ step "clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
 # Includes the c-api crate's Rust tests (so c-api/test.sh below runs with --skip-rust). Skips
-# the two tests of rust-core/tests/all_models.rs that run every model and preset through the
+# the two tests of rust-core/tests/integration/all_models.rs that run every model and preset through the
 # checks in the quick configuration: the next step checks the same materials with at least as
 # many samples, pairs and directions (a test, ci_profile_covers_the_quick_configuration, keeps
 # that true), so running both would only repeat work.
+#
+# Release build: the tests run the code as it ships (opt-level 3, the SIMD code users get), and
+# every later step (lacquer check, the C ABI library, the Mitsuba plugin, the Blender wheel)
+# reuses the same compiled crates instead of building them a second time at another profile.
+# Debug assertions and integer-overflow checks are off here (the crate has four debug_assert!s);
+# a plain `cargo test` keeps them for development. Examples are not built (clippy above
+# type-checks them), and the doc tests run on their own line.
 step "Rust tests (unit, property, chi-square, golden; every model through the checks is the next step)"
-cargo test --workspace -- --skip every_model_passes_its_claims --skip every_preset_passes_its_claims
+cargo test --workspace --release --lib --bins --tests -- --skip every_model_passes_its_claims --skip every_preset_passes_its_claims
+cargo test --workspace --release --doc
 
 # The `ci` profile: the standard configuration, with fewer samples for the three slow
 # physical-optics models (their statistical power is stated in rust-core/src/check/mod.rs and
@@ -95,9 +103,9 @@ python3 bench/vs_mitsuba.py --quick >/dev/null
 
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
-# Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 15 s each from their
+# Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 10 s each from their
 # committed corpora; installs cargo-fuzz when absent and fails without the nightly toolchain.
-step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 15 s)"
+step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 10 s)"
 bash fuzz/smoke.sh
 step "mitsuba-plugin/test.sh"
 bash mitsuba-plugin/test.sh

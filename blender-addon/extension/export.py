@@ -156,7 +156,7 @@ def normal_source(mat, report: Report):
         report.warn(f"material \"{mat.name}\": Coat Normal tilts the whole paint in LACQUER (one shading frame)")
     elif src is not None and coat is not None and coat != src:
         report.warn(f"material \"{mat.name}\": Coat Normal differs from Normal: LACQUER uses Normal for both")
-    if src is None:
+    if src is None or src.bl_idname == "ShaderNodeBump":  # a Bump node: bump_source
         return None
     if src.bl_idname != "ShaderNodeNormalMap" or src.space != "TANGENT":
         report.warn(f"material \"{mat.name}\": the Normal input comes from {src.bl_idname}"
@@ -173,6 +173,36 @@ def normal_source(mat, report: Report):
     if src.inputs["Strength"].is_linked:
         report.warn(f"material \"{mat.name}\": Normal Map Strength is connected; LACQUER uses its value")
     return tex.image, src.uv_map, float(src.inputs["Strength"].default_value)
+
+
+def bump_source(mat, report: Report):
+    """The Bump node (its Height fed by an Image Texture) connected to the Lacquer node's Normal
+    (or Coat Normal) input: ``(texture node, output name, uv_map, strength, distance)`` with the
+    distance negated by Invert, or None with a message for anything LACQUER cannot follow."""
+    from . import nodegroup
+
+    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+    if node is None:
+        return None
+    src = _linked_from(node.inputs.get("Normal")) or _linked_from(node.inputs.get("Coat Normal"))
+    if src is None or src.bl_idname != "ShaderNodeBump":
+        return None
+    height = _link_from(src.inputs["Height"])
+    if height is None or height[0].bl_idname != "ShaderNodeTexImage" or height[0].image is None:
+        kind = height[0].bl_idname if height is not None else "nothing"
+        report.warn(f"material \"{mat.name}\": the Bump node's Height comes from {kind}; LACQUER follows an Image "
+                    f"Texture with an image there (bump ignored)")
+        return None
+    tex, out = height
+    for name in ("Strength", "Distance"):
+        if src.inputs[name].is_linked:
+            report.warn(f"material \"{mat.name}\": Bump {name} is connected; LACQUER uses its value")
+    if src.inputs["Normal"].is_linked:
+        report.warn(f"material \"{mat.name}\": the Bump node's Normal input is connected; LACQUER bumps the "
+                    f"surface's normal")
+    distance = float(src.inputs["Distance"].default_value) * (-1.0 if src.invert else 1.0)
+    return (tex, out.name, _texture_uv_map(tex, mat.name, report), float(src.inputs["Strength"].default_value),
+            distance)
 
 
 def _image_rgb(image) -> tuple[int, int, np.ndarray]:
@@ -207,9 +237,11 @@ def _tangent_arrays(mesh, uv_map: str, loops):
     return uv.reshape(-1, 2)[loops], t.reshape(-1, 3)[loops], bt.reshape(-1, 3)[loops]
 
 
-def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: Report, images: dict) -> dict:
-    """Per material index: the normal map and orange peel of a Lacquer material's mesh part, as
-    the scene format's per-corner arrays (before selecting the part's corners)."""
+def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: Report, images: dict,
+                   bindings=None) -> dict:
+    """Per material index: the normal map, orange peel and texture coordinates (``bindings(mat)``:
+    the material's textures and UV map) of a Lacquer material's mesh part, as the scene format's
+    per-corner arrays (before selecting the part's corners)."""
     out = {}
     for idx, mat in enumerate(materials):
         settings = getattr(mat, "lacquer", None) if mat is not None else None
@@ -228,10 +260,27 @@ def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: R
                                        "uvs": uv, "tangents": t, "bitangents": bt}
             except (RuntimeError, ValueError) as e:
                 report.warn(f"material \"{mat.name}\": normal map not exported ({e})")
+        bump = bump_source(mat, report)
+        if bump is not None:
+            tex, out_name, uv_map, strength, distance = bump
+            try:
+                if ("rgba", tex.image.name) not in images:
+                    images[("rgba", tex.image.name)] = _image_rgba(tex.image)
+                w, h, rgb, alpha = images[("rgba", tex.image.name)]
+                heights = alpha if out_name == "Alpha" else rgb @ GREY  # Cycles' colour → float
+                extra["bump"] = {"width": w, "height": h, "pixels": heights.astype(np.float32),
+                                 "strength": strength, "distance": distance,
+                                 "uvs": _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)}
+            except (RuntimeError, ValueError) as e:
+                report.warn(f"material \"{mat.name}\": bump map not exported ({e})")
         if settings.orange_peel_um > 0.0:
             extra["orange_peel"] = {"amplitude_um": float(settings.orange_peel_um),
                                     "wavelength_mm": float(settings.orange_peel_wavelength_mm),
                                     "metres_per_unit": unit_m, "coords": arrays["coords"]}
+        if bindings is not None:
+            textures, uv_map = bindings(mat)
+            if textures:
+                extra["texture_uvs"] = _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)
         if extra:
             out[idx] = extra
     return out
@@ -249,7 +298,146 @@ def _select_perturb(extra: dict, corner) -> dict:
     if "orange_peel" in extra:
         p = extra["orange_peel"]
         out["orange_peel"] = dict(p, coords=_b64(p["coords"][corner], np.float32))
+    if "texture_uvs" in extra:
+        out["texture_uvs"] = _b64(extra["texture_uvs"][corner], np.float32)
+    if "bump" in extra:
+        m = extra["bump"]
+        out["bump"] = {"width": m["width"], "height": m["height"], "pixels": _b64(m["pixels"], np.float32),
+                       "strength": m["strength"], "distance": m["distance"],
+                       "uvs": _b64(m["uvs"][corner], np.float32)}
     return out
+
+
+# --- textured parameters (rust-core/render/src/texture.rs) ------------------------------------
+
+#: Lacquer node inputs LACQUER exports when an Image Texture is linked: input → paint parameter.
+TEXTURED_INPUTS = {"Base Color": "base_color", "Flake Density": "flake_density", "Coat Roughness": "coat_roughness"}
+#: Linked inputs followed by :func:`normal_source`.
+NORMAL_INPUTS = ("Normal", "Coat Normal")
+#: Cycles' colour → float conversion of a linked socket (linear Rec.709 luminance).
+GREY = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def _link_from(sock):
+    """``(node, output socket)`` feeding a socket through reroutes, or None."""
+    if sock is None or not sock.is_linked:
+        return None
+    link = sock.links[0]
+    while link.from_node.bl_idname == "NodeReroute" and link.from_node.inputs[0].is_linked:
+        link = link.from_node.inputs[0].links[0]
+    return link.from_node, link.from_socket
+
+
+def _image_rgba(image) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """An image's pixels as (width, height, linear RGB, alpha), float32 rows bottom first."""
+    w, h, rgb = _image_rgb(image)
+    px = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(px)
+    alpha = px.reshape(h * w, image.channels)[:, 3] if image.channels == 4 else np.ones(h * w, np.float32)
+    return w, h, rgb, alpha
+
+
+def _texture_uv_map(tex, mat_name: str, report: Report) -> str:
+    """The UV map an Image Texture reads ("" = the mesh's active render UV map, as Cycles)."""
+    src = _link_from(tex.inputs["Vector"])
+    if src is None:
+        return ""
+    node, out = src
+    if node.bl_idname == "ShaderNodeUVMap":
+        return node.uv_map
+    if node.bl_idname == "ShaderNodeTexCoord" and out.name == "UV":
+        return ""
+    report.warn(f"material \"{mat_name}\": the texture \"{tex.name}\" reads coordinates from {node.bl_idname}; "
+                f"LACQUER uses the UV map")
+    return ""
+
+
+def texture_bindings(mat, report: Report, scene_images: dict, cache: dict, images: dict):
+    """A Lacquer material's linked inputs: ``(textures JSON, UV map name)`` for the renderer
+    (images baked into ``scene_images``), with a message for every link LACQUER cannot follow.
+    Cached per material in ``cache``; ``images`` caches decoded Blender images."""
+    from . import nodegroup
+
+    if mat.name in cache:
+        return cache[mat.name]
+    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+    textures: dict = {}
+    uv_maps: list = []
+    paint = props.material_json(mat.lacquer)
+    for sock in node.inputs if node is not None else []:
+        if not sock.is_linked or sock.name in NORMAL_INPUTS:
+            continue
+        key = TEXTURED_INPUTS.get(sock.name)
+        src = _link_from(sock)
+        if key is None:
+            report.warn(f"material \"{mat.name}\": {sock.name} is connected; LACQUER renders the paint's own value "
+                        f"(it exports links on {', '.join(TEXTURED_INPUTS)} and Normal)")
+            continue
+        if src is None or src[0].bl_idname != "ShaderNodeTexImage" or src[0].image is None:
+            kind = src[0].bl_idname if src is not None else "nothing"
+            report.warn(f"material \"{mat.name}\": {sock.name} comes from {kind}; LACQUER exports an Image Texture "
+                        f"with an image there (the paint's value is used)")
+            continue
+        tex, out = src
+        if paint.get("pigment_model", "lambert") != "lambert":
+            report.warn(f"material \"{mat.name}\": textured parameters need the Lambert pigment in LACQUER "
+                        f"(ignored: {sock.name})")
+            continue
+        if key == "coat_roughness" and not float(paint["coat_roughness"]) > 0.0:
+            report.warn(f"material \"{mat.name}\": a Coat Roughness texture needs a rough coat (coat roughness > 0) "
+                        f"in LACQUER (ignored)")
+            continue
+        try:
+            if ("rgba", tex.image.name) not in images:
+                images[("rgba", tex.image.name)] = _image_rgba(tex.image)
+            w, h, rgb, alpha = images[("rgba", tex.image.name)]
+        except (RuntimeError, ValueError) as e:
+            report.warn(f"material \"{mat.name}\": {sock.name} texture not exported ({e})")
+            continue
+        if key == "base_color":
+            values = np.repeat(alpha[:, None], 3, 1) if out.name == "Alpha" else rgb
+            lo, hi = 0.0, 1.0
+        else:
+            grey = alpha if out.name == "Alpha" else rgb @ GREY
+            # Coat Roughness is Principled's (√α, the fit's convention); Flake Density is in %.
+            values = np.repeat((grey * grey if key == "coat_roughness" else grey)[:, None], 3, 1)
+            lo, hi = (0.001, 0.5) if key == "coat_roughness" else (0.0, 100.0)
+        clipped = np.clip(values, lo, hi).astype(np.float32)
+        if not np.array_equal(clipped, values):
+            report.warn(f"material \"{mat.name}\": {sock.name} texture \"{tex.image.name}\" has values outside "
+                        f"[{lo:g}, {hi:g}] for LACQUER (clipped)")
+        name = f"{tex.image.name}|{key}|{out.name}"
+        scene_images[name] = {"width": w, "height": h, "pixels": _b64(clipped, np.float32)}
+        binding = {"image": name, "interpolation": "closest" if tex.interpolation == "Closest" else "linear"}
+        if tex.interpolation not in ("Closest", "Linear"):
+            report.warn(f"material \"{mat.name}\": {tex.interpolation} interpolation rendered as Linear by LACQUER")
+        if tex.extension != "REPEAT" or tex.projection != "FLAT":
+            report.warn(f"material \"{mat.name}\": texture \"{tex.name}\" is rendered with Flat projection and "
+                        f"Repeat extension by LACQUER")
+        textures[key] = binding
+        uv_maps.append(_texture_uv_map(tex, mat.name, report))
+    if len(set(uv_maps)) > 1:
+        report.warn(f"material \"{mat.name}\": its textures read different UV maps; LACQUER uses "
+                    f"\"{uv_maps[0] or 'the active render UV map'}\" for all")
+    if textures and paint.get("sparkle", True):
+        report.warn(f"material \"{mat.name}\": textured paint renders the mean flake lobe in LACQUER "
+                    f"(no per-flake sparkle)")
+    cache[mat.name] = (textures, uv_maps[0] if uv_maps else "")
+    return cache[mat.name]
+
+
+def _uv_array(mesh, uv_map: str, loops, report: Report, mat_name: str) -> np.ndarray:
+    """Per-corner texture coordinates of ``uv_map`` ("" = the active render UV map); zeros with a
+    message without one (Cycles then reads (0, 0))."""
+    layers = mesh.uv_layers
+    name = uv_map or (next((u.name for u in layers if u.active_render), None) if len(layers) else None)
+    if not name or name not in layers:
+        report.warn(f"material \"{mat_name}\": no UV map \"{uv_map or '(active)'}\" on mesh \"{mesh.name}\"; "
+                    f"its textures read uv (0, 0)")
+        return np.zeros((len(loops), 2), np.float32)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    layers[name].data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2)[loops]
 
 
 # --- materials -------------------------------------------------------------------------------
@@ -565,7 +753,12 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
     objects: list = []
     lights: list = []
     mesh_cache: dict = {}
-    images: dict = {}  # normal-map images read once per render
+    images: dict = {}  # normal-map and texture images read once per render
+    scene_images: dict = {}  # baked textures (the scene's "images")
+    tex_cache: dict = {}
+
+    def bindings(mat):
+        return texture_bindings(mat, report, scene_images, tex_cache, images)
     unit_m = float(scene.unit_settings.scale_length)  # metres per Blender unit
     if not unit_m > 0.0:
         raise ValueError(f"the scene's Unit Scale is {unit_m}: it must be positive")
@@ -599,7 +792,7 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
                 mesh = ob.to_mesh() if ob.type != "MESH" else ob.data
                 arrays = _mesh_arrays(mesh, axis_scale) if mesh is not None else {}
                 if arrays:
-                    perturb = perturb_arrays(mesh, arrays, slots, unit_m, report, images)
+                    perturb = perturb_arrays(mesh, arrays, slots, unit_m, report, images, bindings)
             except RuntimeError as e:  # e.g. hair curves, which have no mesh
                 report.warn(f"object \"{ob.name}\": no triangles to render ({e})")
                 arrays = {}
@@ -631,6 +824,9 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
                 # surface is then 1/k metre of the paint's sparkle pattern.
                 k = float(mat.lacquer.flake_scale) if mat is not None else 1.0
                 desc = dict(desc, surface_scale_mm=1000.0 / k)
+                textures = bindings(mat)[0] if mat is not None else {}
+                if textures:
+                    desc["textures"] = textures
             objects.append({"type": "mesh", "mesh": name, "material": desc,
                             "transform": {"matrix": [_vec(row) for row in world]}})
     lights.extend(world_desc(scene.world, report, temp_files))
@@ -640,8 +836,11 @@ def scene_desc(depsgraph, width: int, height: int, report: Report, temp_files: l
         report.warn("motion blur ignored")
     if not objects:
         report.warn("the scene has no visible geometry")
-    return {"camera": camera if camera is not None else camera_desc(cam_obj, width, height, report),
-            "meshes": meshes, "objects": objects, "lights": lights}
+    out = {"camera": camera if camera is not None else camera_desc(cam_obj, width, height, report),
+           "meshes": meshes, "objects": objects, "lights": lights}
+    if scene_images:
+        out["images"] = scene_images
+    return out
 
 
 def render_size(scene) -> tuple[int, int]:

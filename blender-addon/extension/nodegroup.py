@@ -48,7 +48,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 5
+NODE_GROUP_VERSION = 6
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -91,7 +91,20 @@ INPUTS = (
     ("Sparkle Samples", "NodeSocketFloat", 64.0, 1.0, 1e6,
      "Samples per pixel of the render (set by the extension): a pixel footprint holding more flake "
      "cells than this fades them into the mean lobe"),
+    # Textured parameters (version 6): set to the paint's values by the extension; link an Image
+    # Texture to texture them (both engines; LACQUER exports the image, see export.py).
+    ("Base Color", "NodeSocketColor", (0.5, 0.03, 0.03), None, None,
+     "Pigment albedo of the paint (base_color); link an Image Texture to texture it"),
+    ("Flake Density", "NodeSocketFloat", 3.0, 0.0, 100.0,
+     "Metallic flake coverage in % (flake_density); link a texture (values in %) to vary it"),
+    ("Fit Base Color", "NodeSocketColor", (0.5, 0.03, 0.03), None, None,
+     "The base colour the fit used (set by the extension): Pigment Color scales by Base Color / this"),
+    ("Fit Flake Density", "NodeSocketFloat", 3.0, 0.0, 100.0,
+     "The flake density the fit used (set by the extension): Flake Coverage scales by Flake Density / this"),
 )
+
+#: Inputs the extension sets and hides on the material's node (not for artists to edit).
+HIDDEN_INPUTS = ("Fit Base Color", "Fit Flake Density")
 
 #: Orange-peel waves: (unit direction in the object's metric coordinates, phase). The render
 #: crate's table (rust-core/render/src/perturb.rs, ``PEEL_WAVES``), which LACQUER evaluates; the
@@ -307,10 +320,22 @@ def _build(group):
         rough = b.mix("FLOAT", sparkle, mean_rough, fr, x=-400, y=y0 - 300)
         return weight, normal, rough
 
-    flake_w, flake_n, flake_r = layer(I["Flake Size"], I["Flake Coverage"], I["Flake Spread"], None, 300)
+    # Textured parameters: the fitted Pigment Color and Flake Coverage scale with Base Color /
+    # Fit Base Color and Flake Density / Fit Flake Density (1 when nothing is linked: the inputs
+    # then hold the fitted values). Linear in the texel, exact at the fitted paint; the pigment's
+    # interreflection under the coat makes it approximate elsewhere (measured in the README).
+    ratio = b.vmath("DIVIDE", I["Base Color"], b.vmath("MAXIMUM", I["Fit Base Color"], (1e-4, 1e-4, 1e-4),
+                                                       x=-2200, y=-700), x=-2100, y=-700)
+    pigment = b.vmath("MINIMUM", b.vmath("MULTIPLY", I["Pigment Color"], ratio, x=-2000, y=-700), (1.0, 1.0, 1.0),
+                      x=-1900, y=-700)
+    coverage = b.math("MULTIPLY", I["Flake Coverage"],
+                      b.math("DIVIDE", I["Flake Density"], b.math("MAXIMUM", I["Fit Flake Density"], 1e-6,
+                                                                  x=-2200, y=-800), x=-2100, y=-800),
+                      x=-2000, y=-800, clamp=True)
+    flake_w, flake_n, flake_r = layer(I["Flake Size"], coverage, I["Flake Spread"], None, 300)
     # Pearls share the area the metal flakes leave: weight c_p / (1 − c_f) under the flake mix,
     # so that the weights are (1 − c_f − c_p, c_f, c_p) (per cell: that probability).
-    free = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, I["Flake Coverage"], x=-1600, y=-350), 1e-4, x=-1500, y=-350)
+    free = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, coverage, x=-1600, y=-350), 1e-4, x=-1500, y=-350)
     pearl_cov = b.math("MINIMUM", b.math("DIVIDE", I["Pearl Coverage"], free, x=-1400, y=-350), 1.0, x=-1300, y=-350)
     pearl_w, pearl_n, pearl_r = layer(I["Pearl Size"], pearl_cov, I["Pearl Spread"], (37.11, 53.71, 19.31), -500)
 
@@ -350,7 +375,7 @@ def _build(group):
         return p
 
     base = principled(500, 900, "Basecoat (pigment)")
-    b.feed(base.inputs["Base Color"], I["Pigment Color"])
+    b.feed(base.inputs["Base Color"], pigment)
     b.feed(base.inputs["Metallic"], 0.0)
     b.feed(base.inputs["Specular IOR Level"], 0.0)
     b.feed(base.inputs["Roughness"], 0.5)
@@ -485,6 +510,16 @@ def group_node(mat, create=True):
     return node
 
 
+def texture_inputs(material: dict) -> dict:
+    """The textured parameters' inputs for a paint: Base Color and Flake Density hold the paint's
+    values (what a linked texture replaces), Fit Base Color and Fit Flake Density the values the
+    fit used."""
+    color = [float(v) for v in (material["base_color"] if isinstance(material["base_color"], list)
+                                else [material["base_color"]] * 3)]
+    density = float(material["flake_density"])
+    return {"Base Color": color, "Fit Base Color": color, "Flake Density": density, "Fit Flake Density": density}
+
+
 def artist_inputs(settings) -> dict:
     """The node group inputs set from the material's artist controls (not fitted)."""
     return {"Orange Peel": float(settings.orange_peel_um),
@@ -578,7 +613,11 @@ def apply_fit(mat, material: dict, result, error):
     inputs.setdefault("Sparkle", 1.0 if material.get("sparkle", True) else 0.0)
     inputs["Pearl Size"] = material["pearl_size_um"]
     inputs.update(artist_inputs(settings))
+    inputs.update(texture_inputs(material))
     node = group_node(mat)
+    for name in HIDDEN_INPUTS:
+        if node.inputs.get(name) is not None:
+            node.inputs[name].hide = True
     for name, value in inputs.items():
         sock = node.inputs.get(name)
         if sock is None:

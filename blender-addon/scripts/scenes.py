@@ -29,6 +29,10 @@ Scenes:
             groups, bad edits (invalid JSON, out-of-range values) keeping the previous paint
   readme    gold_flake_8 ("Gold metallic 8 %") on a sphere above a floor, studio-like lighting;
             also writes a side-by-side PNG (Cycles | LACQUER) with --png
+  shots     the README screenshots into --img-dir (PNG): the asset library as a contact sheet,
+            orange peel and a normal map (LACQUER), a textured Base Color (Cycles | LACQUER),
+            flakes on a parented, scaled instance (Cycles | LACQUER), LACQUER's passes and the
+            compositor's Denoise node; panels --shot-size px at --shot-spp (readme-image.sh)
 
 With --render-blend FILE (no --zip needed, nothing installed) it only opens FILE and renders
 its scene with Cycles into --out: a farm node without the extension.
@@ -709,6 +713,86 @@ def _normal_map_image(n=64, waves=4, tilt=0.4):
     return img
 
 
+#: The two colours of the textured-parameter smoke's image (left half, right half; linear).
+TEXTURE_COLORS = ((0.70, 0.12, 0.05), (0.06, 0.22, 0.60))
+
+
+def _texture_smoke(out, scene, mat, node, export) -> dict:
+    """Textured parameters (issue 15 item 3): a two-colour Image Texture (left half, right half
+    of the plate's UV map) on the Lacquer node's Base Color renders in LACQUER and Cycles; the
+    same scene is rendered untextured with each colour as the paint's base colour, in both
+    engines, for the test to compare the halves. Also the export: the image is a scene image,
+    the material binds it, the mesh has texture uvs; and a link LACQUER cannot follow is named."""
+    import numpy as np
+
+    nodegroup = _addon_module("nodegroup")
+    rep: dict = {}
+    t = time.perf_counter()
+    mat.lacquer.sparkle = False  # the mean lobe in both engines (Cycles per-cell flakes are noise at 16 spp)
+    nodegroup.update_material(mat)
+    n = 16
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[:, : n // 2, :3] = TEXTURE_COLORS[0]
+    rgba[:, n // 2:, :3] = TEXTURE_COLORS[1]
+    img = bpy.data.images.new("lacquer test halves", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709" if bpy.app.version >= (4, 0, 0) else "Linear"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tree.links.new(tex.outputs["Color"], node.inputs["Base Color"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    rep["exported"] = {"images": sorted(job["scene"].get("images", {})),
+                       "textures": paint[0].get("textures") if paint else None,
+                       "texture_uvs": any("texture_uvs" in m for m in job["scene"]["meshes"].values()),
+                       "messages": report.lines()}
+    for engine in ("LACQUER", "CYCLES"):
+        render(scene, engine, os.path.join(out, f"texture_halves_{engine.lower()}.exr"))
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    base = list(mat.lacquer.base_color)
+    for k, color in enumerate(TEXTURE_COLORS):
+        mat.lacquer.base_color = color
+        nodegroup.update_material(mat)
+        for engine in ("LACQUER", "CYCLES"):
+            render(scene, engine, os.path.join(out, f"texture_plain{k}_{engine.lower()}.exr"))
+    mat.lacquer.base_color = base
+    # The same image on Flake Density and Coat Roughness (export only): Cycles' colour → float
+    # (luminance), and Coat Roughness squared to α (or a message on a smooth coat).
+    tree.links.new(tex.outputs["Color"], node.inputs["Flake Density"])
+    tree.links.new(tex.outputs["Color"], node.inputs["Coat Roughness"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    paint = [o["material"] for o in job["scene"]["objects"] if o["material"].get("model") == "coated_paint"]
+    textures = paint[0].get("textures", {})
+
+    def first_texels(key):
+        b = textures.get(key)
+        if b is None:
+            return None
+        data = job["scene"]["images"][b["image"]]["pixels"]
+        px = np.frombuffer(__import__("base64").b64decode(data[len("base64:"):]), "<f4").reshape(-1, 3)
+        return [float(px[0, 0]), float(px[n // 2, 0]), float(px[n - 1, 0])]  # row 0: texels 0, 8 (right half), 15
+
+    rep["scalars"] = {"keys": sorted(textures), "flake_density": first_texels("flake_density"),
+                      "coat_roughness": first_texels("coat_roughness"), "paint_coat_roughness":
+                      float(mat.lacquer.coat_roughness), "messages": report.lines()}
+    tree.links.remove(node.inputs["Flake Density"].links[0])
+    tree.links.remove(node.inputs["Coat Roughness"].links[0])
+    # A link LACQUER does not follow (a colour node on Base Color) is reported, never dropped silently.
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    tree.links.new(rgb.outputs[0], node.inputs["Base Color"])
+    report = export.Report()
+    export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["unfollowed_link_messages"] = report.lines()
+    tree.links.remove(node.inputs["Base Color"].links[0])
+    nodegroup.update_material(mat)
+    rep["seconds"] = time.perf_counter() - t
+    return rep
+
+
 def artist_smoke(out: str, size: int) -> dict:
     """Artist controls (issue 15 item 2): a normal map on the node's Normal input renders in
     both engines (their shading normals compared through the Normal / Denoising Normal passes),
@@ -763,6 +847,29 @@ def artist_smoke(out: str, size: int) -> dict:
     rep["normal_map_messages"] = report.lines()
     passes("normalmap")
     tree.links.remove(node.inputs["Normal"].links[0])
+    # Image Texture (Non-Color heights, stripes along u) → Bump (Height) → Normal: the plate is
+    # 0.04 units across its UV map, h = ½ + ½ sin(2π 4 u) has slope up to 2π·2/0.04 = 314 per
+    # unit, × Distance 0.001: tilts up to atan(0.314) = 17°.
+    n = 64
+    u = (np.arange(n) + 0.5) / n
+    hgt = np.ones((n, n, 4), np.float32)
+    hgt[..., :3] = (0.5 + 0.5 * np.sin(2 * np.pi * 4 * u))[None, :, None]
+    himg = bpy.data.images.new("lacquer test heights", n, n, float_buffer=True, alpha=True)
+    himg.colorspace_settings.name = "Non-Color"
+    himg.pixels.foreach_set(hgt.reshape(-1))
+    himg.pack()
+    htex = tree.nodes.new("ShaderNodeTexImage")
+    htex.image = himg
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.001
+    tree.links.new(htex.outputs["Color"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], node.inputs["Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["bump_exported"] = any("bump" in m for m in job["scene"]["meshes"].values())
+    rep["bump_messages"] = report.lines()
+    passes("bump")
+    tree.links.remove(node.inputs["Normal"].links[0])
     # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
     mat.lacquer.orange_peel_um = 50.0
     mat.lacquer.orange_peel_wavelength_mm = 8.0
@@ -788,6 +895,7 @@ def artist_smoke(out: str, size: int) -> dict:
                     "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
                     "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
     rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["texture"] = _texture_smoke(out, scene, mat, node, export)
     rep["seconds"] = time.perf_counter() - t
     del np
     return rep
@@ -849,6 +957,7 @@ def assets_smoke(out: str, size: int) -> dict:
             "enabled": mat.lacquer.enabled, "preset": mat.lacquer.preset, "params_match": bool(same),
             "group": node.node_tree.name if node is not None else None,
             "group_version": node.node_tree.get("lacquer_version") if node is not None else None,
+            "expected_group_version": _addon_module("nodegroup").NODE_GROUP_VERSION,
             "fit_inputs": bool(mat.lacquer.fit_inputs), "coverage": node.inputs["Flake Coverage"].default_value,
             "expected_coverage": json.loads(mat.lacquer.fit_inputs).get("Flake Coverage"),
             "catalog": cat_path, "expected_catalog": catalog.asset_catalog(name), "models": models,
@@ -1025,6 +1134,279 @@ def side_by_side_png(left: str, right: str, out: str):
     img.save()
 
 
+# --- README screenshots (blender-addon/readme-image.sh: `--scenes shots --img-dir docs/img`) ----------
+# Each shot builds on the test scenes' set-up (scene_readme, scene_density's plate and sun,
+# _normal_map_image, TEXTURE_COLORS, compositor) and writes one small sRGB PNG of panels.
+
+
+def _load_linear(path):
+    """An EXR's RGBA as an (h, w, 4) float array, top row first."""
+    import numpy as np
+
+    im = bpy.data.images.load(path)
+    w, h = im.size
+    px = np.empty(w * h * 4, np.float32)
+    im.pixels.foreach_get(px)
+    bpy.data.images.remove(im)
+    return px.reshape(h, w, 4)[::-1]
+
+
+def _srgb(rgb):
+    import numpy as np
+
+    rgb = np.clip(rgb, 0.0, 1.0)
+    return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+
+
+def panels_png(panels, out: str, gap: int = 4, display=()):
+    """Panels (h, w, ≥3 arrays, top row first, scene-linear except the indices in ``display``,
+    which are already display values in [0, 1]) side by side with a white gap, written as an
+    8-bit sRGB PNG (Standard view transform)."""
+    import numpy as np
+
+    h = max(p.shape[0] for p in panels)
+    w = sum(p.shape[1] for p in panels) + gap * (len(panels) - 1)
+    canvas = np.ones((h, w, 4), np.float32)
+    x = 0
+    for k, p in enumerate(panels):
+        rgb = np.clip(p[..., :3], 0.0, 1.0) if k in display else _srgb(p[..., :3])
+        canvas[: p.shape[0], x: x + p.shape[1], :3] = rgb
+        x += p.shape[1] + gap
+    img = bpy.data.images.new(os.path.basename(out), w, h, alpha=False)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(canvas[::-1].reshape(-1))
+    img.filepath_raw = out
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+    return {"file": out, "size": [w, h], "bytes": os.path.getsize(out)}
+
+
+def _shot_render(scene, engine, out, tag):
+    path = os.path.join(out, f"shot_{tag}.exr")
+    r = render(scene, engine, path)
+    print(f"rendered shot {tag} with {engine} in {r['seconds']:.2f} s", flush=True)
+    return _load_linear(path), r
+
+
+def shot_library(out, img_dir, size):
+    """(a) The bundled asset library as a contact sheet: each preset's thumbnail (the core's
+    shader ball, as the Asset Browser shows it) with its label, laid out by Blender itself (image
+    planes and text objects, emission only, an orthographic camera, Cycles)."""
+    assets = _addon_module("assets")
+    catalog = _addon_module("catalog")
+    scene = fresh_scene(size, 16)
+    scene.render.film_transparent = False
+    set_world(scene, (1.0, 1.0, 1.0))
+    cols = 6
+    presets = sorted(catalog.presets(), key=lambda p: (catalog.ASSET_CATALOGS.index(catalog.asset_catalog(p[0])), p[0]))
+    rows = (len(presets) + cols - 1) // cols
+    cell_w, cell_h = 1.0, 1.3  # a 0.8-unit thumbnail, two lines of label under it
+    thumbs = os.path.join(assets.library_dir(), "thumbs")
+
+    def emission(name, image=None, color=(0.0, 0.0, 0.0)):
+        m = bpy.data.materials.new(name)
+        if hasattr(m, "use_nodes"):
+            m.use_nodes = True
+        nt = m.node_tree
+        nt.nodes.clear()
+        em = nt.nodes.new("ShaderNodeEmission")
+        if image is not None:
+            tex = nt.nodes.new("ShaderNodeTexImage")
+            tex.image = image
+            nt.links.new(tex.outputs["Color"], em.inputs["Color"])
+        else:
+            em.inputs["Color"].default_value = (*color, 1.0)
+        o = nt.nodes.new("ShaderNodeOutputMaterial")
+        nt.links.new(em.outputs[0], o.inputs["Surface"])
+        return m
+
+    ink = emission("ink")
+    for k, (name, label, _, _) in enumerate(presets):
+        r, c = divmod(k, cols)
+        x, y = (c + 0.5) * cell_w, -(r + 0.5) * cell_h
+        bpy.ops.mesh.primitive_plane_add(size=0.8, location=(x, y + 0.2, 0.0))
+        plane = bpy.context.object
+        img = bpy.data.images.load(os.path.join(thumbs, name + ".png"))
+        plane.data.materials.append(emission(name, img))
+        words = label.replace(", ", ",\n") if len(label) > 16 else label
+        for line, text in enumerate(words.split("\n")):
+            curve = bpy.data.curves.new(f"{name} label {line}", "FONT")
+            curve.body = text
+            curve.size = 0.105
+            curve.align_x = "CENTER"
+            ob = bpy.data.objects.new(curve.name, curve)
+            ob.location = (x, y - 0.31 - 0.13 * line, 0.0)
+            curve.materials.append(ink)
+            scene.collection.objects.link(ob)
+    cam = add_camera(scene, (cols * cell_w / 2, -rows * cell_h / 2, 5.0), (cols * cell_w / 2, -rows * cell_h / 2, 0.0))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = cols * cell_w
+    scene.render.resolution_x = size
+    scene.render.resolution_y = round(size * rows * cell_h / (cols * cell_w))
+    img, r = _shot_render(scene, "CYCLES", out, "library")
+    png = panels_png([img], os.path.join(img_dir, "blender-library.png"))
+    return {"presets": [p[0] for p in presets], "render": r, "png": png}
+
+
+def _readme_ball():
+    """scene_readme's set-up (gold_flake_8 sphere above a floor, two area lights); the ball."""
+    scene, mats = scene_readme(SHOT_SIZE, SHOT_SPP)
+    ball = next(o for o in scene.objects if o.type == "MESH" and o.active_material == mats["gold_flake_8"])
+    return scene, mats["gold_flake_8"], ball
+
+
+#: README screenshots: panel size and samples (set by shots() from --shot-size and --shot-spp).
+SHOT_SIZE = 240
+SHOT_SPP = 64
+
+
+def shot_surface(out, img_dir):
+    """(b) Orange peel and a normal map on the coat, LACQUER: plain | orange peel | normal map."""
+    scene, mat, ball = _readme_ball()
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    panels, rep = [], {}
+    img, rep["plain"] = _shot_render(scene, "LACQUER", out, "surface_plain")
+    panels.append(img)
+    # Exaggerated 100× so that it shows at 0.4 mm per pixel (real paint: 0.1–1 µm over 1–10 mm).
+    mat.lacquer.orange_peel_um = 100.0
+    mat.lacquer.orange_peel_wavelength_mm = 6.0
+    img, rep["peel"] = _shot_render(scene, "LACQUER", out, "surface_peel")
+    panels.append(img)
+    mat.lacquer.orange_peel_um = 0.0
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = _normal_map_image(n=256, waves=24, tilt=0.25)
+    nm = tree.nodes.new("ShaderNodeNormalMap")
+    nm.space = "TANGENT"
+    nm.uv_map = ball.data.uv_layers[0].name
+    tree.links.new(tex.outputs["Color"], nm.inputs["Color"])
+    tree.links.new(nm.outputs["Normal"], node.inputs["Normal"])
+    img, rep["normal_map"] = _shot_render(scene, "LACQUER", out, "surface_normalmap")
+    panels.append(img)
+    rep["png"] = panels_png(panels, os.path.join(img_dir, "blender-surface.png"))
+    return rep
+
+
+def shot_texture(out, img_dir):
+    """(c) An image texture (8 × 4 checker of TEXTURE_COLORS, linear) on the Lacquer node's
+    Base Color, sphere UV map: Cycles | LACQUER."""
+    import numpy as np
+
+    scene, mat, ball = _readme_ball()
+    node = mat.node_tree.nodes["Lacquer Paint"]
+    n = 64
+    i, j = np.meshgrid(np.arange(n) * 8 // n, np.arange(n) * 4 // n)
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[..., :3] = np.where(((i + j) % 2 == 0)[..., None], TEXTURE_COLORS[0], TEXTURE_COLORS[1])
+    img = bpy.data.images.new("lacquer checker", n, n, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709"
+    img.pixels.foreach_set(rgba.reshape(-1))
+    img.pack()
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = "Closest"
+    mat.node_tree.links.new(tex.outputs["Color"], node.inputs["Base Color"])
+    rep, panels = {}, []
+    for engine in ("CYCLES", "LACQUER"):
+        im, rep[engine] = _shot_render(scene, engine, out, f"texture_{engine.lower()}")
+        panels.append(im)
+    rep["png"] = panels_png(panels, os.path.join(img_dir, "blender-texture.png"))
+    return rep
+
+
+def shot_flakescale(out, img_dir):
+    """(d) Flake size on a parented, scaled instance: scene_density's 2 cm view and sun; the
+    left half a plain 1 cm plate, the right half a collection instance of a 100-unit plate whose
+    instancer is parented under an FBX-like root scaled 0.01 and scaled 0.01 itself (1 cm again).
+    Flake Scale 10 (250 µm flakes) so that single flakes are pixels wide. Cycles | LACQUER:
+    the same flake size on both plates and in both engines."""
+    scene = fresh_scene(SHOT_SIZE, SHOT_SPP)
+    set_world(scene, (0.02, 0.02, 0.02))
+    add_camera(scene, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0), lens=900.0)
+    sun_dir = (math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
+    add_light(scene, "SUN", sun_dir, (0.0, 0.0, 0.0), energy=3.0, angle=math.radians(0.5))
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 0.0))
+    plain = bpy.context.object
+    plain.scale = (0.009, 0.02, 1.0)
+    plain.location = (-0.0055, 0.0, 0.0)
+    mat = assign(plain, "gold_flake_8")
+    mat.lacquer.flake_scale = 10.0
+    proto = bpy.data.collections.new("Shot plate proto")
+    bpy.ops.mesh.primitive_plane_add(size=90.0)
+    plate = bpy.context.object
+    plate.scale = (1.0, 2.0 / 0.9, 1.0)
+    for c in list(plate.users_collection):
+        c.objects.unlink(plate)
+    proto.objects.link(plate)
+    plate.data.materials.append(mat)
+    root = bpy.data.objects.new("FBX root", None)
+    root.scale = (0.01,) * 3
+    root.location = (0.0055, 0.0, 0.0)
+    scene.collection.objects.link(root)
+    inst = bpy.data.objects.new("instance", None)
+    inst.instance_type = "COLLECTION"
+    inst.instance_collection = proto
+    inst.scale = (0.01,) * 3
+    inst.parent = root
+    scene.collection.objects.link(inst)
+    rep, panels = {}, []
+    for engine in ("CYCLES", "LACQUER"):
+        im, rep[engine] = _shot_render(scene, engine, out, f"flakescale_{engine.lower()}")
+        panels.append(im)
+    rep["png"] = panels_png(panels, os.path.join(img_dir, "blender-flake-scale.png"))
+    return rep
+
+
+def shot_passes(out, img_dir):
+    """(e) LACQUER's passes at 16 spp, sparkle off: Combined, Denoising Albedo, Denoising Normal
+    (shown as ½ + ½ n) and Render Layers → Denoise (Image, Normal, Albedo) → output."""
+    scene, mat, ball = _readme_ball()
+    scene.lacquer.samples = 16
+    scene.lacquer.sparkle = False
+    scene.render.engine = "LACQUER"
+    rep, panels = {}, []
+    img, rep["combined"] = _shot_render(scene, "LACQUER", out, "passes_combined")
+    panels.append(img)
+    for name, tag in (("Denoising Albedo", "albedo"), ("Denoising Normal", "normal")):
+        compositor(scene, name, denoise=False)
+        img, rep[tag] = _shot_render(scene, "LACQUER", out, f"passes_{tag}")
+        if tag == "normal":
+            img = img.copy()
+            img[..., :3] = 0.5 + 0.5 * img[..., :3]  # a display value, not scene-linear
+        panels.append(img)
+    try:
+        rep["rl_outputs"] = compositor(scene, "Image", denoise=True)
+        img, rep["denoised"] = _shot_render(scene, "LACQUER", out, "passes_denoised")
+        panels.append(img)
+        rep["denoise"] = "ok"
+    except Exception as e:  # noqa: BLE001  (reported, the strip is written without it)
+        rep["denoise"] = f"unavailable: {e}"
+        print(f"Denoise node unavailable: {e}", flush=True)
+    disable_compositor(scene)
+    rep["png"] = panels_png(panels, os.path.join(img_dir, "blender-passes.png"), display=(2,))
+    return rep
+
+
+def shots(out: str, img_dir: str, size: int, spp: int) -> dict:
+    """All README screenshots; returns timings and the PNGs written."""
+    global SHOT_SIZE, SHOT_SPP
+    SHOT_SIZE, SHOT_SPP = size, spp
+    os.makedirs(img_dir, exist_ok=True)
+    rep = {}
+    for name, fn in (("library", lambda: shot_library(out, img_dir, 640)),
+                     ("surface", lambda: shot_surface(out, img_dir)),
+                     ("texture", lambda: shot_texture(out, img_dir)),
+                     ("flakescale", lambda: shot_flakescale(out, img_dir)),
+                     ("passes", lambda: shot_passes(out, img_dir))):
+        t = time.perf_counter()
+        rep[name] = fn()
+        rep[name]["seconds"] = time.perf_counter() - t
+        print(f"shot {name}: {rep[name]['png']['file']} {rep[name]['png']['bytes']} bytes in "
+              f"{rep[name]['seconds']:.1f} s", flush=True)
+    return rep
+
+
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--zip", help="the extension zip (blender-addon/build.sh)")
@@ -1035,6 +1417,9 @@ def main(argv):
     ap.add_argument("--scenes", default="compare,density")
     ap.add_argument("--engines", default="CYCLES,LACQUER")
     ap.add_argument("--png", help="readme: the side-by-side PNG to write")
+    ap.add_argument("--img-dir", help="shots: the folder for the README screenshots (PNG)")
+    ap.add_argument("--shot-size", type=int, default=240, help="shots: panel size in pixels")
+    ap.add_argument("--shot-spp", type=int, default=64, help="shots: samples per pixel")
     ap.add_argument("--blend", action="store_true", help="also save each scene as a .blend")
     ap.add_argument("--eevee", action="store_true", help="also render the compare scene with EEVEE")
     a = ap.parse_args(argv)
@@ -1074,6 +1459,9 @@ def main(argv):
                 jobs.append(("instances", lambda: scene_instances(a.size, a.spp)))
             elif name == "readme":
                 jobs.append(("readme", lambda: scene_readme(a.size, a.spp)))
+            elif name == "shots":
+                if not a.img_dir:
+                    raise SystemExit("--scenes shots needs --img-dir")
             elif name in ("engine", "editing", "artist", "assets"):
                 smokes.append(name)  # after the scenes: editing opens and saves files
             elif name == "lod":
@@ -1143,6 +1531,8 @@ def main(argv):
             report[name] = smoke(os.path.abspath(a.out), a.size)
             report[name]["smoke_seconds"] = time.perf_counter() - t
             print(f"{name} smoke in {report[name]['smoke_seconds']:.2f} s", flush=True)
+        if "shots" in a.scenes.split(","):
+            report["shots"] = shots(os.path.abspath(a.out), os.path.abspath(a.img_dir), a.shot_size, a.shot_spp)
         if a.png and "readme" in a.scenes.split(","):
             out = os.path.abspath(a.out)
             side_by_side_png(os.path.join(out, "readme_cycles.exr"), os.path.join(out, "readme_lacquer.exr"), a.png)

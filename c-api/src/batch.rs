@@ -1039,12 +1039,13 @@ pub unsafe extern "C" fn lq_sample_one(
 // hold, read and written in place.
 
 /// Validated SoA arrays of one call: the component pointers as core views.
-struct SoaIn<'a> {
-    view: lacquer_core::batch::Src3<'a, f32>,
+pub(crate) struct SoaIn<'a> {
+    /// The three arrays as one core view.
+    pub(crate) view: lacquer_core::batch::Src3<'a, f32>,
 }
 
 /// Validates three component arrays of `n` floats each (one SoA 3-vector).
-fn soa_in<'a, const N: usize>(
+pub(crate) fn soa_in<'a, const N: usize>(
     b: &mut Batch<N>,
     name: &'static [&'static str; 3],
     p: [*const c_float; 3],
@@ -1066,7 +1067,8 @@ fn soa_in<'a, const N: usize>(
     Ok(SoaIn { view })
 }
 
-fn soa_out<const N: usize>(
+/// Validates three output arrays (one SoA 3-vector) and returns their pointers.
+pub(crate) fn soa_out<const N: usize>(
     b: &mut Batch<N>,
     name: &'static [&'static str; 3],
     p: [*mut c_float; 3],
@@ -1078,8 +1080,31 @@ fn soa_out<const N: usize>(
     ])
 }
 
+/// The SoA outputs of a sample call as core views.
+///
+/// # Safety
+/// Every pointer is validated (non-NULL, aligned, not overlapping) and holds `n` values.
+pub(crate) unsafe fn sample_out<'a>(
+    n: usize,
+    wi: [*mut c_float; 3],
+    w: [*mut c_float; 3],
+    pdf: *mut c_float,
+    flags: Option<*mut u32>,
+) -> lacquer_core::batch::SampleOut<'a, f32> {
+    use lacquer_core::batch::{Dst1, Dst3, SampleOut};
+    // SAFETY: the caller's contract.
+    unsafe {
+        SampleOut {
+            wi: Dst3::from_raw(wi[0], wi[1], wi[2], 1, n),
+            weight: Dst3::from_raw(w[0], w[1], w[2], 1, n),
+            pdf: Dst1::from_raw(pdf, 1, n),
+            flags: flags.map(|p| std::slice::from_raw_parts_mut(p, n)),
+        }
+    }
+}
+
 /// The `active` bytes (NULL: all active).
-unsafe fn active_mask<'a>(active: *const u8, n: usize) -> Option<&'a [u8]> {
+pub(crate) unsafe fn active_mask<'a>(active: *const u8, n: usize) -> Option<&'a [u8]> {
     // SAFETY: NULL or n readable bytes (caller's contract); u8 needs no alignment.
     (!active.is_null()).then(|| unsafe { std::slice::from_raw_parts(active, n) })
 }
@@ -1251,12 +1276,7 @@ pub unsafe extern "C" fn lq_sample_soa(
         let pdf_p = b.output::<c_float, 1>("pdf", pdf)?.ptr().cast::<c_float>();
         let flags_p = b.optional_output::<u32, 1>("flags", flags)?.map(|a| a.ptr());
         b.check_overlaps()?;
-        let mut out = lacquer_core::batch::SampleOut {
-            wi: lacquer_core::batch::Dst3::from_raw(wi_p[0], wi_p[1], wi_p[2], 1, n),
-            weight: lacquer_core::batch::Dst3::from_raw(w_p[0], w_p[1], w_p[2], 1, n),
-            pdf: lacquer_core::batch::Dst1::from_raw(pdf_p, 1, n),
-            flags: flags_p.map(|p| std::slice::from_raw_parts_mut(p.cast::<u32>(), n)),
-        };
+        let mut out = sample_out(n, wi_p, w_p, pdf_p, flags_p.map(|p| p.cast::<u32>()));
         let report = lacquer_core::batch::sample(m, &wo_v.view, &u_v.view, active_mask(active, n), &mut out)
             .map_err(|e| Failure::invalid(e.to_string()))?;
         let wo3 = [wo_x, wo_y, wo_z];

@@ -2,10 +2,11 @@
 //! `lq_sample_varying` over structure-of-arrays inputs (see `lacquer::paint::varying`).
 
 use crate::arrays::Batch;
+use crate::batch::{active_mask, sample_out, soa_in, soa_out};
 use crate::material::{lq_material, material};
 use crate::status::lq_status::{LQ_ERR_INVALID_DIRECTION, LQ_ERR_INVALID_ELEMENT};
 use crate::status::{guard, lq_status, Failure};
-use lacquer_core::batch::{BatchReport, Dst1, Dst3, SampleOut, Src3};
+use lacquer_core::batch::{BatchReport, Dst1, Dst3};
 use lacquer_core::paint::varying::PaintTexture;
 use lacquer_core::Material;
 use std::ffi::c_float;
@@ -103,26 +104,6 @@ fn report_status(report: BatchReport, tex: &Texture<'_>) -> Result<(), Failure> 
     Ok(())
 }
 
-fn soa_in<'a, const N: usize>(
-    b: &mut Batch<N>,
-    names: [&'static str; 3],
-    p: [*const c_float; 3],
-    n: usize,
-) -> Result<Src3<'a, f32>, Failure> {
-    for (name, q) in names.iter().zip(p) {
-        b.input::<c_float, 1>(name, q)?;
-    }
-    // SAFETY: validated non-NULL and aligned; n elements is the caller's contract.
-    Ok(unsafe { Src3::from_raw(p[0], p[1], p[2], 1, n) })
-}
-
-fn soa_out<const N: usize>(b: &mut Batch<N>, names: [&'static str; 3], p: [*mut c_float; 3]) -> Result<(), Failure> {
-    for (name, q) in names.iter().zip(p) {
-        b.output::<c_float, 1>(name, q)?;
-    }
-    Ok(())
-}
-
 /// `lq_eval_pdf_soa` with per-element paint parameters of a `coated_paint` material: element i
 /// is evaluated as the material with `base_color = (base_color_r[i], base_color_g[i],
 /// base_color_b[i])` (each in [0, 1]), `flake_density = flake_density[i]` (%, [0, 100], with
@@ -170,11 +151,11 @@ pub unsafe extern "C" fn lq_eval_pdf_varying(
             return Err(Failure::null("f_r/f_g/f_b and pdf (at least one output is needed)"));
         }
         let mut b = Batch::<15>::new(n);
-        let wi = soa_in(&mut b, ["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z], n)?;
-        let wo = soa_in(&mut b, ["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?;
+        let wi = soa_in(&mut b, &["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z], n)?.view;
+        let wo = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?.view;
         let tex = texture(&mut b, n, [base_color_r, base_color_g, base_color_b], flake_density, coat_roughness)?;
         if want_f {
-            soa_out(&mut b, ["f_r", "f_g", "f_b"], [f_r, f_g, f_b])?;
+            soa_out(&mut b, &["f_r", "f_g", "f_b"], [f_r, f_g, f_b])?;
         }
         if !pdf.is_null() {
             b.output::<c_float, 1>("pdf", pdf)?;
@@ -182,7 +163,7 @@ pub unsafe extern "C" fn lq_eval_pdf_varying(
         b.check_overlaps()?;
         let f_v = want_f.then(|| Dst3::from_raw(f_r, f_g, f_b, 1, n));
         let pdf_v = (!pdf.is_null()).then(|| Dst1::from_raw(pdf, 1, n));
-        let active = (!active.is_null()).then(|| std::slice::from_raw_parts(active, n));
+        let active = active_mask(active, n);
         let report =
             lacquer_core::batch::eval_pdf_varying(m, &tex.core(), &wi, &wo, active, f_v.as_ref(), pdf_v.as_ref())
                 .map_err(|e| Failure::invalid(e.to_string()))?;
@@ -229,21 +210,16 @@ pub unsafe extern "C" fn lq_sample_varying(
             return Ok(());
         }
         let mut b = Batch::<19>::new(n);
-        let wo = soa_in(&mut b, ["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?;
-        let u = soa_in(&mut b, ["u0", "u1", "u2"], [u0, u1, u2], n)?;
+        let wo = soa_in(&mut b, &["wo_x", "wo_y", "wo_z"], [wo_x, wo_y, wo_z], n)?.view;
+        let u = soa_in(&mut b, &["u0", "u1", "u2"], [u0, u1, u2], n)?.view;
         let tex = texture(&mut b, n, [base_color_r, base_color_g, base_color_b], flake_density, coat_roughness)?;
-        soa_out(&mut b, ["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z])?;
-        soa_out(&mut b, ["w_r", "w_g", "w_b"], [w_r, w_g, w_b])?;
+        let wi_p = soa_out(&mut b, &["wi_x", "wi_y", "wi_z"], [wi_x, wi_y, wi_z])?;
+        let w_p = soa_out(&mut b, &["w_r", "w_g", "w_b"], [w_r, w_g, w_b])?;
         b.output::<c_float, 1>("pdf", pdf)?;
         b.optional_output::<u32, 1>("flags", flags)?;
         b.check_overlaps()?;
-        let mut out = SampleOut {
-            wi: Dst3::from_raw(wi_x, wi_y, wi_z, 1, n),
-            weight: Dst3::from_raw(w_r, w_g, w_b, 1, n),
-            pdf: Dst1::from_raw(pdf, 1, n),
-            flags: (!flags.is_null()).then(|| std::slice::from_raw_parts_mut(flags, n)),
-        };
-        let active = (!active.is_null()).then(|| std::slice::from_raw_parts(active, n));
+        let mut out = sample_out(n, wi_p, w_p, pdf, (!flags.is_null()).then_some(flags));
+        let active = active_mask(active, n);
         let report = lacquer_core::batch::sample_varying(m, &tex.core(), &wo, &u, active, &mut out)
             .map_err(|e| Failure::invalid(e.to_string()))?;
         report_status(report, &tex)
@@ -255,6 +231,7 @@ mod tests {
     use super::*;
     use crate::material::{lq_material_free, lq_material_from_json};
     use crate::status::lq_status::{LQ_ERR_INVALID_ARGUMENT, LQ_ERR_NULL, LQ_OK};
+    use lacquer_core::batch::Src3;
     use std::ffi::CString;
 
     fn load(json: &str) -> *mut lq_material {
@@ -271,6 +248,48 @@ mod tests {
     /// The C calls agree with the core's varying calls (bit-identical: same kernels), report
     /// invalid parameters by element, and reject NULL outputs, half-given colours and a
     /// texture on another model without panicking.
+    /// `lq_eval_pdf_varying` on SoA directions with the colour and density arrays given or
+    /// NULL (`None`), without roughness or mask.
+    #[allow(clippy::too_many_arguments)]
+    fn eval_varying(
+        m: *const lq_material,
+        n: usize,
+        wi: &[Vec<f32>; 3],
+        wo: &[Vec<f32>; 3],
+        rgb: [Option<&[f32]>; 3],
+        dens: Option<&[f32]>,
+        f: [*mut f32; 3],
+        p: *mut f32,
+    ) -> lq_status {
+        let ptr = |a: Option<&[f32]>| a.map_or(std::ptr::null(), <[f32]>::as_ptr);
+        let null = std::ptr::null();
+        let [a, b, c] = [&wi[0], &wi[1], &wi[2]].map(|v| v.as_ptr());
+        let [d, e, g] = [&wo[0], &wo[1], &wo[2]].map(|v| v.as_ptr());
+        // SAFETY: every non-NULL array holds n values.
+        unsafe {
+            lq_eval_pdf_varying(
+                m,
+                n,
+                a,
+                b,
+                c,
+                d,
+                e,
+                g,
+                ptr(rgb[0]),
+                ptr(rgb[1]),
+                ptr(rgb[2]),
+                ptr(dens),
+                null,
+                null.cast(),
+                f[0],
+                f[1],
+                f[2],
+                p,
+            )
+        }
+    }
+
     #[test]
     fn varying_calls_through_the_abi() {
         let m = load(r#"{"model": "coated_paint", "flake_density": 3}"#);
@@ -284,28 +303,16 @@ mod tests {
         green[7] = 2.0; // out of range
         let (mut f, mut p) = ([vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]], vec![0.0f32; n]);
         let [fr, fg, fb] = &mut f;
-        let st = unsafe {
-            lq_eval_pdf_varying(
-                m,
-                n,
-                wi[0].as_ptr(),
-                wi[1].as_ptr(),
-                wi[2].as_ptr(),
-                wo[0].as_ptr(),
-                wo[1].as_ptr(),
-                wo[2].as_ptr(),
-                red.as_ptr(),
-                green.as_ptr(),
-                blue.as_ptr(),
-                dens.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                fr.as_mut_ptr(),
-                fg.as_mut_ptr(),
-                fb.as_mut_ptr(),
-                p.as_mut_ptr(),
-            )
-        };
+        let st = eval_varying(
+            m,
+            n,
+            &wi,
+            &wo,
+            [Some(&red[..]), Some(&green[..]), Some(&blue[..])],
+            Some(&dens[..]),
+            [fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()],
+            p.as_mut_ptr(),
+        );
         assert_eq!(st, LQ_ERR_INVALID_ELEMENT);
         let msg = last_error();
         assert!(msg.contains("element 7") && msg.contains("base_color"), "{msg}");
@@ -327,75 +334,24 @@ mod tests {
             assert!(fr[i] > 0.0 && p[i] > 0.0);
         }
         let null = std::ptr::null_mut::<f32>();
-        let st = unsafe {
-            lq_eval_pdf_varying(
-                m,
-                n,
-                wi[0].as_ptr(),
-                wi[1].as_ptr(),
-                wi[2].as_ptr(),
-                wo[0].as_ptr(),
-                wo[1].as_ptr(),
-                wo[2].as_ptr(),
-                red.as_ptr(),
-                std::ptr::null(),
-                blue.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                fr.as_mut_ptr(),
-                fg.as_mut_ptr(),
-                fb.as_mut_ptr(),
-                p.as_mut_ptr(),
-            )
-        };
+        let st = eval_varying(
+            m,
+            n,
+            &wi,
+            &wo,
+            [Some(&red[..]), None, Some(&blue[..])],
+            None,
+            [fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()],
+            p.as_mut_ptr(),
+        );
         assert_eq!(st, LQ_ERR_INVALID_ARGUMENT, "{}", last_error());
-        let st = unsafe {
-            lq_eval_pdf_varying(
-                m,
-                n,
-                wi[0].as_ptr(),
-                wi[1].as_ptr(),
-                wi[2].as_ptr(),
-                wo[0].as_ptr(),
-                wo[1].as_ptr(),
-                wo[2].as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                dens.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                null,
-                null,
-                null,
-                null,
-            )
+        // A density texture alone, on material `mat` into `f`, `pdf`.
+        let density_only = |mat: *const lq_material, f: [*mut f32; 3], pdf: *mut f32| {
+            eval_varying(mat, n, &wi, &wo, [None, None, None], Some(&dens[..]), f, pdf)
         };
-        assert_eq!(st, LQ_ERR_NULL, "{}", last_error());
-        let st = unsafe {
-            lq_eval_pdf_varying(
-                std::ptr::null(),
-                n,
-                wi[0].as_ptr(),
-                wi[1].as_ptr(),
-                wi[2].as_ptr(),
-                wo[0].as_ptr(),
-                wo[1].as_ptr(),
-                wo[2].as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                dens.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                fr.as_mut_ptr(),
-                fg.as_mut_ptr(),
-                fb.as_mut_ptr(),
-                p.as_mut_ptr(),
-            )
-        };
-        assert_eq!(st, LQ_ERR_NULL);
+        assert_eq!(density_only(m, [null; 3], null), LQ_ERR_NULL, "{}", last_error());
+        let (f_out, p_out) = ([fr.as_mut_ptr(), fg.as_mut_ptr(), fb.as_mut_ptr()], p.as_mut_ptr());
+        assert_eq!(density_only(std::ptr::null(), f_out, p_out), LQ_ERR_NULL);
         // Sampling: coat roughness out of range on element 2; NULL flags allowed.
         let u = [vec![0.3f32; n], vec![0.6f32; n], vec![0.2f32; n]];
         let mut rough = vec![0.05f32; n];
@@ -441,29 +397,7 @@ mod tests {
         unsafe { lq_material_free(m) };
         // A texture on another model is an argument error, not a panic.
         let l = load(r#"{"model": "lambert"}"#);
-        let st = unsafe {
-            lq_eval_pdf_varying(
-                l,
-                n,
-                wi[0].as_ptr(),
-                wi[1].as_ptr(),
-                wi[2].as_ptr(),
-                wo[0].as_ptr(),
-                wo[1].as_ptr(),
-                wo[2].as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                dens.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                fr.as_mut_ptr(),
-                fg.as_mut_ptr(),
-                fb.as_mut_ptr(),
-                p.as_mut_ptr(),
-            )
-        };
-        assert_eq!(st, LQ_ERR_INVALID_ARGUMENT);
+        assert_eq!(density_only(l, f_out, p_out), LQ_ERR_INVALID_ARGUMENT);
         assert!(last_error().contains("coated_paint"), "{}", last_error());
         unsafe { lq_material_free(l) };
     }

@@ -65,7 +65,7 @@ def main():
             sym = None
             if variant.startswith("llvm"):
                 # Before any lacquer BSDF exists: symbolic calls trace every registered BSDF
-                # instance of the variant, and the plugin refuses symbolic tracing.
+                # instance of the variant, and a traced lacquer object adds its (zero) branch.
                 timed_render(builtin_scene, args.spp)
                 sym = min(timed_render(builtin_scene, args.spp) for _ in range(args.repeat))
             try:

@@ -23,7 +23,8 @@
 // (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
 // the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
 // write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
-// with dr.JitFlag.SymbolicLoops and SymbolicCalls off).
+// with dr.JitFlag.SymbolicLoops and SymbolicCalls off; traced symbolically the plugin returns
+// zero / an invalid sample and warns once per object, see symbolic_scope()).
 //
 // Parameters (see docs/mitsuba.md):
 //   model      string   a Lacquer model name (`lacquer models`), e.g. "coated_paint"
@@ -37,6 +38,10 @@
 //                       plugin holds no parameter list. Every scalar and colour parameter is
 //                       in mi.traverse; parameters_changed rebuilds the material (a bad value
 //                       raises and keeps the previous material).
+//   base_color, flake_density, coat_roughness (coated_paint)   also any Mitsuba texture:
+//                       evaluated per lane and passed to lq_eval_pdf_varying /
+//                       lq_sample_varying (mean lobe, no sparkle); a constant texture is
+//                       the plain value; untextured materials keep the plain calls
 //   tint       texture  optional reflectance-like multiplier in [0, 1] (e.g. a bitmap): scales
 //                       f_r, and so the sample weight; the pdf is unchanged
 //   footprint  bool     pass uv and the ray-differential footprint to spatially varying
@@ -51,6 +56,8 @@
 #include <lacquer.h>
 
 #include <algorithm>
+#include <atomic>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -181,6 +188,16 @@ inline std::string json_number(double v) {
     return buf;
 }
 
+/// A float32 value as JSON: the shortest decimal that reads back as the same float.
+inline std::string json_float(double v) {
+    float f = (float) v;
+    if (!std::isfinite(f))
+        return "null";
+    char buf[32];
+    auto r = std::to_chars(buf, buf + sizeof buf, f);
+    return std::string(buf, r.ptr);
+}
+
 /// Numbers of a canonical JSON value: `0.5` -> {0.5}, `[0.1,0.2,0.3]` -> {0.1, 0.2, 0.3},
 /// `true` -> {1}.
 inline std::vector<double> json_numbers(const std::string &text) {
@@ -244,14 +261,27 @@ public:
         for (size_t i = 0; i < m_params.size(); ++i)
             m_values[i] = param_json(raw, m_params[i].name);
 
-        // 3. Typed properties override those values.
+        // 3. Typed properties override those values; a texture on base_color, flake_density
+        //    or coat_roughness (coated_paint) is evaluated per lane and passed to the core's
+        //    per-element calls (lq_eval_pdf_varying / lq_sample_varying).
         for (const auto &it : props) {
             std::string key(it.name());
             if (key == "material" || key == "preset" || key == "model" || key == "tint" ||
                 key == "footprint")
                 continue;
             size_t i = find_param(key);
+            if (it.type() == Properties::Type::Object && set_texture(props, key, i))
+                continue;
             m_values[i] = property_value(props, m_params[i], key, it.type());
+        }
+        if (m_tex_roughness) {
+            // The per-element calls need a rough coat (elements in [0.001, 0.5]); the
+            // material's own value then only decides the flags, so a smooth coat (0: a delta
+            // lobe) becomes the smallest rough one.
+            size_t i = find_param("coat_roughness");
+            std::vector<double> v = json_numbers(m_values[i]);
+            if (v.size() == 1 && v[0] < 0.001)
+                m_values[i] = "0.001";
         }
         std::string error;
         if (!rebuild(m_values, error))
@@ -268,11 +298,41 @@ public:
         update_flags();
     }
 
+    /// The texture of a textured parameter, or null.
+    const ref<Texture> &texture_of(const std::string &name) const {
+        static const ref<Texture> none;
+        if (name == "base_color")
+            return m_tex_color;
+        if (name == "flake_density")
+            return m_tex_density;
+        if (name == "coat_roughness")
+            return m_tex_roughness;
+        return none;
+    }
+
+    /// The texture member of a texturable parameter (null for the others).
+    ref<Texture> *texture_slot(const std::string &name) {
+        if (name == "base_color")
+            return &m_tex_color;
+        if (name == "flake_density")
+            return &m_tex_density;
+        if (name == "coat_roughness")
+            return &m_tex_roughness;
+        return nullptr;
+    }
+
+    /// True when any paint parameter is textured (the per-element calls are used).
+    bool textured() const { return m_tex_color || m_tex_density || m_tex_roughness; }
+
     /// Every scalar and colour parameter of the model (non-differentiable: editing one
-    /// rebuilds the material in parameters_changed), plus the tint texture.
+    /// rebuilds the material in parameters_changed), the textures of textured parameters in
+    /// their place (their own parameters, e.g. `base_color.data`, are read per lane: editing
+    /// them needs no rebuild), plus the tint texture.
     void traverse(TraversalCallback *cb) override {
         for (size_t i = 0; i < m_params.size(); ++i) {
-            if (m_params[i].numeric())
+            if (ref<Texture> *t = texture_slot(m_params[i].name); t && *t)
+                cb->put(m_params[i].name, *t, ParamFlags::NonDifferentiable);
+            else if (m_params[i].numeric())
                 cb->put(m_params[i].name, m_scalar[i], ParamFlags::NonDifferentiable);
             else if (m_params[i].color())
                 cb->put(m_params[i].name, m_color[i], ParamFlags::NonDifferentiable);
@@ -289,6 +349,8 @@ public:
         // in use keeps that value exactly (editing one parameter must not round the others).
         std::vector<std::string> values = m_values;
         for (size_t i = 0; i < m_params.size(); ++i) {
+            if (texture_of(m_params[i].name))
+                continue; // its value in the material only sets the flags
             std::vector<double> now = lacquer_detail::json_numbers(m_values[i]);
             if (m_params[i].numeric()) {
                 double v = scalar_of(m_scalar[i]);
@@ -346,7 +408,15 @@ public:
             float wo[3] = { si.wi.x(), si.wi.y(), si.wi.z() },
                   u[3] = { sample1, sample2.x(), sample2.y() }, wi[3], weight[3], pdf;
             uint32_t flags = 0;
-            if (use_footprint(si)) {
+            if (textured()) {
+                TexLane t;
+                texture_values(si, active, t);
+                check_varying(lq_sample_varying(m_material.get(), 1, &wo[0], &wo[1], &wo[2], &u[0], &u[1],
+                                                &u[2], t.r(), t.g(), t.b(), t.d(), t.a(), nullptr, &wi[0],
+                                                &wi[1], &wi[2], &weight[0], &weight[1], &weight[2], &pdf,
+                                                &flags),
+                              "lq_sample_varying");
+            } else if (use_footprint(si)) {
                 float uv[2], duv[4];
                 spatial_inputs(si, uv, duv);
                 lacquer_detail::check(lq_sample_spatial(m_material.get(), 1, wo, u, uv, duv, wi,
@@ -370,7 +440,9 @@ public:
                 value *= m_tint->eval(si, active);
             return { bs, depolarizer<Spectrum>(value) };
         } else {
-            size_t n = batch_begin("sample", si.wi, sample1, sample2, active);
+            if (symbolic_scope())
+                return { bs, 0.f }; // invalid sample: pdf 0, value 0
+            size_t n = batch_width(si.wi, sample1, sample2, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
             if (!spatial) {
@@ -390,10 +462,20 @@ public:
                 float *o[7] = { wi_x.data(), wi_y.data(), wi_z.data(), w_r.data(), w_g.data(),
                                 w_b.data(), pdf_j.data() };
                 uint32_t *of = fl_j.data();
+                FloatJ tex[5];
+                const float *tp[5] = { nullptr, nullptr, nullptr, nullptr, nullptr };
+                if (textured())
+                    texture_lanes(si, active, n, tex, tp);
                 dr::sync_thread();
-                lacquer_detail::check(lq_sample_soa(m_material.get(), n, px, py, pz, p0, p1, p2, pa,
-                                                    o[0], o[1], o[2], o[3], o[4], o[5], o[6], of),
-                                      "lq_sample_soa");
+                if (textured())
+                    check_varying(lq_sample_varying(m_material.get(), n, px, py, pz, p0, p1, p2, tp[0], tp[1],
+                                                    tp[2], tp[3], tp[4], pa, o[0], o[1], o[2], o[3], o[4],
+                                                    o[5], o[6], of),
+                                  "lq_sample_varying");
+                else
+                    lacquer_detail::check(lq_sample_soa(m_material.get(), n, px, py, pz, p0, p1, p2, pa,
+                                                        o[0], o[1], o[2], o[3], o[4], o[5], o[6], of),
+                                          "lq_sample_soa");
                 Float pdf_v(pdf_j);
                 UInt32 fl(fl_j);
                 Mask delta = (fl & UInt32(LQ_SAMPLE_DELTA)) != 0u;
@@ -472,7 +554,9 @@ public:
     /// The pigment / diffuse albedo from the core (lq_material_diffuse_reflectance), times
     /// the tint: no clearcoat highlight in albedo AOVs.
     Spectrum eval_diffuse_reflectance(const SurfaceInteraction3f &si, Mask active) const override {
-        UnpolarizedSpectrum value = from_rgb(m_diffuse, si);
+        // coated_paint's diffuse reflectance is its base_color (the core's definition): a
+        // textured one is the texture's value here.
+        UnpolarizedSpectrum value = m_tex_color ? m_tex_color->eval(si, active) : from_rgb(m_diffuse, si);
         if (m_tint)
             value *= m_tint->eval(si, active);
         return depolarizer<Spectrum>(value) & active;
@@ -486,7 +570,10 @@ public:
             << "  lobes = " << m_lobes << " (LQ_LOBE_* bits)," << std::endl
             << "  delta_lobe = " << (m_has_delta ? "true" : "false") << "," << std::endl
             << "  footprint = " << (m_spatial ? "true" : "false") << "," << std::endl
-            << "  tint = " << (m_tint ? string::indent(m_tint) : std::string("none")) << std::endl
+            << "  tint = " << (m_tint ? string::indent(m_tint) : std::string("none")) << "," << std::endl
+            << "  base_color texture = " << (m_tex_color ? string::indent(m_tex_color) : std::string("none")) << "," << std::endl
+            << "  flake_density texture = " << (m_tex_density ? string::indent(m_tex_density) : std::string("none")) << "," << std::endl
+            << "  coat_roughness texture = " << (m_tex_roughness ? string::indent(m_tex_roughness) : std::string("none")) << std::endl
             << "]";
         return oss.str();
     }
@@ -506,7 +593,15 @@ private:
             float a[3] = { wo.x(), wo.y(), wo.z() }, b[3] = { si.wi.x(), si.wi.y(), si.wi.z() };
             float f[3] = { 0.f, 0.f, 0.f }, pdf = 0.f;
             lq_material *m = m_material.get();
-            if (use_footprint(si)) {
+            if (textured()) {
+                TexLane t;
+                texture_values(si, active, t);
+                check_varying(lq_eval_pdf_varying(m, 1, &a[0], &a[1], &a[2], &b[0], &b[1], &b[2], t.r(), t.g(),
+                                                  t.b(), t.d(), t.a(), nullptr, want_f ? &f[0] : nullptr,
+                                                  want_f ? &f[1] : nullptr, want_f ? &f[2] : nullptr,
+                                                  want_pdf ? &pdf : nullptr),
+                              "lq_eval_pdf_varying");
+            } else if (use_footprint(si)) {
                 float uv[2], duv[4];
                 spatial_inputs(si, uv, duv);
                 if (want_f && want_pdf)
@@ -532,7 +627,9 @@ private:
             }
             return { depolarizer<Spectrum>(value), pdf };
         } else {
-            size_t n = batch_begin("eval/pdf", si.wi, wo, active);
+            if (symbolic_scope())
+                return { 0.f, 0.f };
+            size_t n = batch_width(si.wi, wo, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
             if (!spatial) {
@@ -554,9 +651,17 @@ private:
                 const uint8_t *pa = mask_bytes(act);
                 float *pr = want_f ? f_r.data() : nullptr, *pg = want_f ? f_g.data() : nullptr,
                       *pb = want_f ? f_b.data() : nullptr, *pp = want_pdf ? pdf_j.data() : nullptr;
+                FloatJ tex[5];
+                const float *tp[5] = { nullptr, nullptr, nullptr, nullptr, nullptr };
+                if (textured())
+                    texture_lanes(si, active, n, tex, tp);
                 dr::sync_thread();
                 lq_material *m = m_material.get();
-                if (want_f && want_pdf)
+                if (textured())
+                    check_varying(lq_eval_pdf_varying(m, n, pax, pay, paz, pbx, pby, pbz, tp[0], tp[1], tp[2],
+                                                      tp[3], tp[4], pa, pr, pg, pb, pp),
+                                  "lq_eval_pdf_varying");
+                else if (want_f && want_pdf)
                     lacquer_detail::check(lq_eval_pdf_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pr, pg, pb, pp), "lq_eval_pdf_soa");
                 else if (want_f)
                     lacquer_detail::check(lq_eval_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pr, pg, pb), "lq_eval_soa");
@@ -720,24 +825,134 @@ private:
         }
     }
 
+    using FloatJ = dr::detached_t<Float>;
+    using UInt32J = dr::detached_t<UInt32>;
+    using MaskJ = dr::detached_t<Mask>;
+
+    // ---- Textured parameters (coated_paint: base_color, flake_density, coat_roughness) ---
+
+    /// Scalar variants: the textured parameters at one interaction and the pointers the
+    /// per-element calls take (NULL: not textured, the material's value).
+    struct TexLane {
+        float rgb[3] = { 0.f, 0.f, 0.f }, density = 0.f, roughness = 0.f;
+        bool color = false, has_density = false, has_roughness = false;
+        const float *r() const { return color ? &rgb[0] : nullptr; }
+        const float *g() const { return color ? &rgb[1] : nullptr; }
+        const float *b() const { return color ? &rgb[2] : nullptr; }
+        const float *d() const { return has_density ? &density : nullptr; }
+        const float *a() const { return has_roughness ? &roughness : nullptr; }
+    };
+
+    /// Evaluates the textures at `si` (scalar variants). base_color is RGB: Texture::eval in
+    /// the RGB variants, Texture::eval_3 in scalar_spectral (a texture holding spectra there,
+    /// e.g. a checkerboard or a non-raw bitmap, raises a Mitsuba error naming the limitation).
+    void texture_values(const SurfaceInteraction3f &si, Mask active, TexLane &t) const {
+        if constexpr (!dr::is_jit_v<Float>) {
+            try {
+                if (m_tex_color) {
+                    Color3f c;
+                    if constexpr (is_rgb_v<Spectrum>)
+                        c = m_tex_color->eval(si, active);
+                    else
+                        c = m_tex_color->eval_3(si, active);
+                    t.rgb[0] = c.x(); t.rgb[1] = c.y(); t.rgb[2] = c.z();
+                    t.color = true;
+                }
+                if (m_tex_density) {
+                    t.density = m_tex_density->eval_1(si, active);
+                    t.has_density = true;
+                }
+                if (m_tex_roughness) {
+                    t.roughness = m_tex_roughness->eval_1(si, active);
+                    t.has_roughness = true;
+                }
+            } catch (const std::exception &e) {
+                if constexpr (is_spectral_v<Spectrum>)
+                    Throw("lacquer: a textured parameter could not be read as RGB / a float in this "
+                          "spectral variant (the paint takes base_color as linear RGB: give a bitmap "
+                          "with raw=\"true\", or render in scalar_rgb / llvm_ad_rgb): %s", e.what());
+                throw;
+            }
+        } else {
+            DRJIT_MARK_USED(si);
+            DRJIT_MARK_USED(active);
+            DRJIT_MARK_USED(t);
+        }
+    }
+
+    /// JIT variants: the textured parameters as evaluated detached arrays of width n in
+    /// `tex` (r, g, b, flake_density, coat_roughness) and their data pointers in `ptr`
+    /// (untouched, NULL, for untextured ones). Waits for nothing: call dr::sync_thread()
+    /// before the library reads them.
+    void texture_lanes(const SurfaceInteraction3f &si, const Mask &active, size_t n, FloatJ (&tex)[5],
+                       const float *(&ptr)[5]) const {
+        if constexpr (dr::is_jit_v<Float>) {
+            if (m_tex_color) {
+                Color3f c = m_tex_color->eval(si, active);
+                tex[0] = lanes(c.x(), n);
+                tex[1] = lanes(c.y(), n);
+                tex[2] = lanes(c.z(), n);
+            }
+            if (m_tex_density)
+                tex[3] = lanes(m_tex_density->eval_1(si, active), n);
+            if (m_tex_roughness)
+                tex[4] = lanes(m_tex_roughness->eval_1(si, active), n);
+            dr::eval(tex[0], tex[1], tex[2], tex[3], tex[4]);
+            for (int k = 0; k < 5; ++k)
+                if (dr::width(tex[k]) == n && (k >= 3 ? (k == 3 ? (bool) m_tex_density : (bool) m_tex_roughness)
+                                                      : (bool) m_tex_color))
+                    ptr[k] = tex[k].data();
+        } else {
+            DRJIT_MARK_USED(si);
+            DRJIT_MARK_USED(active);
+            DRJIT_MARK_USED(n);
+            DRJIT_MARK_USED(tex);
+            DRJIT_MARK_USED(ptr);
+        }
+    }
+
+    /// lacquer_detail::check for the per-element calls, plus one warning per material when
+    /// elements had invalid texture values (out of range or NaN: the core returns zero for
+    /// them, so those pixels render black), with the core's message naming the first.
+    void check_varying(lq_status status, const char *what) const {
+        if (status == LQ_ERR_INVALID_ELEMENT && !m_warned.exchange(true))
+            Log(Warn, "lacquer: %s: %s. Those elements evaluate to zero (black); this warning is "
+                      "shown once per material.", what, lq_last_error());
+        lacquer_detail::check(status, what);
+    }
+
     // ---- JIT variants: the batched path -------------------------------------------------
 
+    /// True when Dr.Jit is tracing this call symbolically (a symbolic loop or virtual call:
+    /// Mitsuba's default in llvm variants). The library cannot run on symbolic arrays, so the
+    /// callers return zero (eval, pdf) or an invalid sample there. A symbolic virtual call
+    /// traces every live BSDF of the variant (Dr.Jit's registry holds no notion of which
+    /// scene an object belongs to), so an object not used by the scene being rendered gets
+    /// here too: its zero is never selected and that render is unchanged. One warning per
+    /// object names the fix for scenes that do use it.
+    bool symbolic_scope() const {
+        if (!jit_flag(JitFlag::SymbolicScope))
+            return false;
+        if (!m_warned_symbolic.exchange(true))
+            Log(Warn, "lacquer: the lacquer BSDF \"%s\" (model %s) is being traced inside a symbolic "
+                      "Dr.Jit loop or call (Mitsuba's default in llvm variants), where it evaluates to "
+                      "zero (black) and its samples are invalid. Harmless if the scene being rendered "
+                      "does not use it (a symbolic call traces every live BSDF). To render a scene that "
+                      "uses it, use wavefront mode: lacquer_mitsuba.render(scene, ...), or "
+                      "`with lacquer_mitsuba.wavefront(): mi.render(scene)`, i.e. "
+                      "dr.set_flag(dr.JitFlag.SymbolicLoops, False) and "
+                      "dr.set_flag(dr.JitFlag.SymbolicCalls, False) (docs/mitsuba.md). Shown once "
+                      "per object.", this->id().empty() ? std::string("(no id)") : std::string(this->id()), m_model);
+        return true;
+    }
+
+    /// Width of a batch: the widest operand (width-1 operands are broadcast).
     template <typename... Ts>
-    size_t batch_begin(const char *what, const Ts &...values) const {
-        if (jit_flag(JitFlag::SymbolicScope))
-            Throw("lacquer: %s was called inside a symbolic Dr.Jit scope. The lacquer plugin calls "
-                  "the Lacquer C library on evaluated arrays and cannot run inside symbolic loops "
-                  "or calls: render in wavefront mode with "
-                  "dr.set_flag(dr.JitFlag.SymbolicLoops, False) and "
-                  "dr.set_flag(dr.JitFlag.SymbolicCalls, False) (see docs/mitsuba.md).", what);
+    static size_t batch_width(const Ts &...values) {
         size_t n = 1;
         ((n = std::max(n, (size_t) dr::width(values))), ...);
         return n;
     }
-
-    using FloatJ = dr::detached_t<Float>;
-    using UInt32J = dr::detached_t<UInt32>;
-    using MaskJ = dr::detached_t<Mask>;
 
     /// A detached array of width n (width-1 operands broadcast), for a structure-of-arrays
     /// call; evaluate it (dr::eval) before taking .data(). Already evaluated arrays of width n
@@ -856,10 +1071,6 @@ private:
                     Color<double, 3> c = props.get<Color<double, 3>>(key);
                     return "[" + in_range(c.x()) + "," + in_range(c.y()) + "," + in_range(c.z()) + "]";
                 }
-                if (type == T::Object)
-                    Throw("lacquer: property \"%s\" is a texture: textured parameters are not "
-                          "supported yet; give %s (%s) or use \"tint\" for a texture", key,
-                          p.xml_tag(), p.range());
                 return wrong();
             }
             case LQ_PARAM_BOOL:
@@ -885,6 +1096,46 @@ private:
                     return wrong();
                 return json_string(props.get<std::string>(key));
         }
+    }
+
+    /// A texture object given for parameter i. A constant texture (`uniform`, `rgb`) becomes
+    /// the plain value and returns true; any other texture on
+    /// base_color, flake_density or coat_roughness of coated_paint is kept, evaluated per lane,
+    /// and returns true; on another parameter or model it raises a Mitsuba error.
+    bool set_texture(const Properties &props, const std::string &key, size_t i) {
+        using namespace lacquer_detail;
+        const ParamInfo &p = m_params[i];
+        if (!p.numeric() && !p.color())
+            return false; // property_value names the expected type
+        ref<Texture> t = p.color() ? props.get_texture<Texture>(key)
+                                   : props.get_unbounded_texture<Texture>(key);
+        // Constant: Mitsuba's uniform and rgb textures (is_spatially_varying() is no guide:
+        // a mesh_attribute reports false).
+        std::string_view cls = t->class_name();
+        if (cls == "UniformSpectrum" || cls == "SRGBReflectanceSpectrum") {
+            // Texture values are float32: the shortest decimal that round-trips, so that a
+            // constant texture of 0.2 is the material of the plain property 0.2.
+            if (p.numeric()) {
+                m_values[i] = json_float(scalar_of(t->mean()));
+                return true;
+            }
+            if constexpr (is_rgb_v<Spectrum>) {
+                auto c = t->eval(dr::zeros<SurfaceInteraction3f>());
+                m_values[i] = "[" + json_float(scalar_of(c.x())) + "," + json_float(scalar_of(c.y())) +
+                              "," + json_float(scalar_of(c.z())) + "]";
+                return true;
+            }
+            Throw("lacquer: property \"%s\" is a constant texture object: in this variant give the "
+                  "colour as %s (%s)", key, p.xml_tag(), p.range());
+        }
+        bool supported = m_model == "coated_paint" &&
+                         (key == "base_color" || key == "flake_density" || key == "coat_roughness");
+        if (!supported)
+            Throw("lacquer: property \"%s\" is a texture, but model \"%s\" takes textures only on "
+                  "coated_paint's base_color, flake_density and coat_roughness; give %s (%s), or "
+                  "use \"tint\" (a texture multiplying f_r)", key, m_model, p.xml_tag(), p.range());
+        (key == "base_color" ? m_tex_color : key == "flake_density" ? m_tex_density : m_tex_roughness) = t;
+        return true;
     }
 
     /// Builds the material from parameter values (JSON text per parameter); on success it
@@ -937,8 +1188,30 @@ private:
         lacquer_detail::check(lq_material_lobes(m_material.get(), &lobes), "lq_material_lobes");
         lacquer_detail::check(lq_material_diffuse_reflectance(m_material.get(), m_diffuse),
                               "lq_material_diffuse_reflectance");
+        if constexpr (is_spectral_v<Spectrum>)
+            if (textured() && (lobes & LQ_LOBE_SPECTRAL))
+                Throw("lacquer: textured parameters of a material with spectral physics (thin-film "
+                      "pearl flakes: pearl_density > 0) cannot render in a spectral variant: the C ABI "
+                      "has no per-element spectral call. Render it in scalar_rgb or llvm_ad_rgb, or "
+                      "drop the texture or the pearl flakes");
+        if (textured()) {
+            // One element through the per-element call: a material the core cannot vary
+            // (e.g. pigment_model "eon") fails here, at load, with the core's reason.
+            float z0 = 0.f, z1 = 1.f, c = 0.5f, d = 0.f, a = 0.1f, f[3], pdf;
+            lq_status s = lq_eval_pdf_varying(
+                m_material.get(), 1, &z0, &z0, &z1, &z0, &z0, &z1, m_tex_color ? &c : nullptr,
+                m_tex_color ? &c : nullptr, m_tex_color ? &c : nullptr, m_tex_density ? &d : nullptr,
+                m_tex_roughness ? &a : nullptr, nullptr, &f[0], &f[1], &f[2], &pdf);
+            if (s != LQ_OK)
+                Throw("lacquer: this material cannot take textured parameters (%s): %s",
+                      lq_status_name(s), lq_last_error());
+        }
+        // A textured base_color has a diffuse lobe wherever the texture is not black.
+        if (m_tex_color)
+            lobes |= LQ_LOBE_DIFFUSE;
         m_lobes = lobes;
-        m_spatial = m_footprint && (lobes & LQ_LOBE_SPATIALLY_VARYING);
+        // The per-element calls evaluate the mean lobe: a textured paint has no sparkle.
+        m_spatial = m_footprint && (lobes & LQ_LOBE_SPATIALLY_VARYING) && !textured();
         uint32_t smooth = 0;
         if (lobes & LQ_LOBE_DIFFUSE)
             smooth |= +BSDFFlags::DiffuseReflection;
@@ -961,7 +1234,7 @@ private:
             m_flags |= c;
         if (lobes & LQ_LOBE_NON_RECIPROCAL)
             m_flags |= +BSDFFlags::NonSymmetric;
-        if ((lobes & LQ_LOBE_SPATIALLY_VARYING) || (m_tint && m_tint->is_spatially_varying()))
+        if ((lobes & LQ_LOBE_SPATIALLY_VARYING) || (m_tint && m_tint->is_spatially_varying()) || textured())
             m_flags |= +BSDFFlags::SpatiallyVarying;
         if (m_spatial)
             m_flags |= +BSDFFlags::NeedsDifferentials;
@@ -977,11 +1250,17 @@ private:
     std::vector<Float> m_scalar;
     std::vector<Color3f> m_color;
     ref<Texture> m_tint;
+    /// Textures of base_color, flake_density and coat_roughness (null: the material's value).
+    ref<Texture> m_tex_color, m_tex_density, m_tex_roughness;
+    /// Set once an invalid per-element value was reported (one warning per material).
+    mutable std::atomic<bool> m_warned{ false };
+    /// symbolic_scope() has warned (once per object).
+    mutable std::atomic<bool> m_warned_symbolic{ false };
     float m_diffuse[3] = { 0.f, 0.f, 0.f };
     bool m_footprint = true, m_spatial = false, m_has_smooth = true, m_has_delta = false;
     uint32_t m_smooth_type = 0, m_smooth_sampled = 0, m_delta_component = 1, m_lobes = 0;
 
-    MI_TRAVERSE_CB(Base, m_tint)
+    MI_TRAVERSE_CB(Base, m_tint, m_tex_color, m_tex_density, m_tex_roughness)
 };
 
 NAMESPACE_END(mitsuba)

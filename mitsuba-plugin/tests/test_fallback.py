@@ -2,6 +2,8 @@
 variants the native plugin does not serve: same values as the native plugin, and what
 register() picks per variant."""
 
+import gc
+
 import numpy as np
 import pytest
 
@@ -43,6 +45,31 @@ def test_fallback_equals_native_llvm(llvm_rgb, lacquer_py):
         # yet (closing note, session 3), so the sample comparison allows 1e-5; eval/pdf keep 1e-6.
         for a, b in ((bn.wo, bp.wo), (bn.pdf, bp.pdf), (wn, wp), (bn.sampled_type, bp.sampled_type)):
             assert np.allclose(np.array(a), np.array(b), rtol=1e-5, atol=1e-9)
+
+
+def test_fallback_symbolic_llvm(llvm_rgb, lacquer_py, capfd):
+    """Traced symbolically the fallback does what the native plugin does: a live object the
+    scene does not use leaves the render bit for bit unchanged and warns once; a scene using it
+    renders through lacquer_mitsuba.render (wavefront) as in wavefront mode."""
+    lacquer_mitsuba.register(python_name="lacquer_py")
+    from test_plugin import DIFFUSE, small_scene
+
+    gc.collect()
+    ref = np.array(mi.render(small_scene(DIFFUSE), seed=5))
+    live = mi.load_dict({"type": "lacquer_py", "material": '{"model": "lambert", "albedo": 0.8}'})
+    live.set_id("live_unused_lacquer_py")
+    capfd.readouterr()
+    img = np.array(mi.render(small_scene(DIFFUSE), seed=5))
+    mi.render(small_scene(DIFFUSE), seed=6)
+    out = capfd.readouterr()
+    assert np.array_equal(img, ref)
+    assert (out.out + out.err).count('"live_unused_lacquer_py" is being traced inside a symbolic Dr.Jit') == 1
+    scene = small_scene({"type": "lacquer_py", "material": '{"model": "lambert", "albedo": 0.8}'})
+    img = np.array(lacquer_mitsuba.render(scene, seed=3))
+    with lacquer_mitsuba.wavefront():
+        wave = np.array(mi.render(scene, seed=3))
+    assert np.array_equal(img, wave) and 0.6 < img[6:10, 10:14].mean() < 1.0
+    del live
 
 
 def test_fallback_serves_llvm_mono(lacquer_py):
@@ -105,3 +132,11 @@ def test_fallback_typed_properties_equal_native(scalar_rgb, lacquer_py):
         mi.load_dict({"type": "lacquer_py", "model": "coated_paint", "flake_density": -1.0})
     with pytest.raises(RuntimeError, match="exactly one"):
         mi.load_dict({"type": "lacquer_py", "model": "lambert", "preset": "gold_flake_8"})
+
+
+def test_fallback_refuses_a_texture_by_name(scalar_rgb, lacquer_py):
+    """Textures need the native plugin: the fallback says so instead of misreading the object."""
+    lacquer_mitsuba.register(python_name="lacquer_py")
+    with pytest.raises(Exception, match='"base_color" is a texture.*native plugin'):
+        mi.load_dict({"type": "lacquer_py", "model": "coated_paint",
+                      "base_color": {"type": "checkerboard"}})

@@ -22,7 +22,7 @@ use crate::lanes::{self, Lanes, Mask};
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
 use crate::models::{above_or_up, checked_sample, KernelVisitor, LaneKernel, Model};
-use crate::paint::varying::{Element, PaintTexture, VaryingPaint};
+use crate::paint::varying::{Element, PaintTexture, Vary, VaryingPaint};
 use crate::real::Real;
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -602,35 +602,54 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
         let (lo, hi) = (L::c(0.0), L::splat(below_one));
         let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
         let s: LaneSample<L> = model.sample(o, uc);
-        let inputs_ok = on & o_ok & u_ok;
-        let good = inputs_ok & s.valid;
-        let wi = Vec3::select(good, s.wi, Vec3::zero());
-        let weight = Rgb::select(good, s.weight, Rgb::zero());
-        unsafe {
-            store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
-            store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
-            store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
-        }
-        if let Some(fl) = flags {
-            for j in 0..width {
-                let v = if !on.lane(j) {
-                    0
-                } else if !inputs_ok.lane(j) {
-                    SAMPLE_FAILED | SAMPLE_INVALID_INPUT
-                } else if !good.lane(j) {
-                    SAMPLE_FAILED
-                } else if s.delta.lane(j) {
-                    SAMPLE_DELTA
-                } else {
-                    0
-                };
-                // SAFETY: the flags slice holds n values (checked by `sample`).
-                unsafe { *fl.add(start + j) = v };
-            }
-        }
+        // SAFETY: start + width ≤ n for every output (checked by `sample`).
+        unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) };
         start += width;
     }
     report
+}
+
+/// Stores one lane group of samples (zero where the inputs or the sample are invalid) and
+/// their flags: `on` the active lanes, `inputs_ok` the active lanes with valid inputs.
+///
+/// # Safety
+/// `start + width` ≤ the length of every output view and of `flags`.
+#[inline(always)]
+unsafe fn store_sample<L: Lanes>(
+    out: &SampleOut<L::Elem>,
+    flags: Option<*mut u32>,
+    start: usize,
+    width: usize,
+    on: L::Mask,
+    inputs_ok: L::Mask,
+    s: &LaneSample<L>,
+) {
+    let good = inputs_ok & s.valid;
+    let wi = Vec3::select(good, s.wi, Vec3::zero());
+    let weight = Rgb::select(good, s.weight, Rgb::zero());
+    // SAFETY: the caller guarantees the outputs hold start + width values.
+    unsafe {
+        store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
+        store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
+        store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
+    }
+    if let Some(fl) = flags {
+        for j in 0..width {
+            let v = if !on.lane(j) {
+                0
+            } else if !inputs_ok.lane(j) {
+                SAMPLE_FAILED | SAMPLE_INVALID_INPUT
+            } else if !good.lane(j) {
+                SAMPLE_FAILED
+            } else if s.delta.lane(j) {
+                SAMPLE_DELTA
+            } else {
+                0
+            };
+            // SAFETY: the flags slice holds start + width values (the caller's contract).
+            unsafe { *fl.add(start + j) = v };
+        }
+    }
 }
 
 /// Runs `kernel` over `0..n`, split over the thread pool when the batch is large.
@@ -1005,7 +1024,8 @@ unsafe fn load_element<L: Lanes>(
     };
     let c = density.map_or(L::c(c0), |d| lanes::select(ok, d * L::c(0.01), L::c(c0)));
     let alpha = alpha.map_or(L::c(a0), |a| lanes::select(ok, a, L::c(if vp.varies_alpha() { 0.1 } else { a0 })));
-    (vp.element(rho, c, alpha), ok)
+    let vary = Vary { rho: tex.base_color.is_some(), c: tex.flake_density.is_some() };
+    (vp.element(rho, c, alpha, vary), ok)
 }
 
 #[inline(always)]
@@ -1039,13 +1059,25 @@ fn eval_pdf_varying_kernel<L: Lanes>(
         let keep = on & ok & p_ok;
         let above = lanes::gt(a.z, L::c(HORIZON_COS)) & lanes::gt(o.z, L::c(HORIZON_COS));
         let (a, o) = (above_or_up(above, a), above_or_up(above, o));
-        if let Some(f) = f {
-            let v = Rgb::select(keep & above, vp.eval_lanes(&e, a, o), Rgb::zero());
-            unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
-        }
-        if let Some(pdf) = pdf {
-            let v = lanes::keep(keep & above, vp.pdf_lanes(&e, a, o));
-            unsafe { store1(pdf, start, width, v) };
+        let keep = keep & above;
+        match (f, pdf) {
+            (Some(f), Some(pdf)) => {
+                let (v, p) = vp.eval_pdf_lanes(&e, a, o);
+                let v = Rgb::select(keep, v, Rgb::zero());
+                unsafe {
+                    store3(f, start, width, [v.r, v.g, v.b]);
+                    store1(pdf, start, width, lanes::keep(keep, p));
+                }
+            }
+            (Some(f), None) => {
+                let v = Rgb::select(keep, vp.eval_lanes(&e, a, o), Rgb::zero());
+                unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
+            }
+            (None, Some(pdf)) => {
+                let v = lanes::keep(keep, vp.pdf_lanes(&e, a, o));
+                unsafe { store1(pdf, start, width, v) };
+            }
+            (None, None) => {}
         }
         start += width;
     }
@@ -1085,32 +1117,8 @@ fn sample_varying_kernel<L: Lanes>(
         let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
         let above = lanes::gt(o.z, L::c(HORIZON_COS));
         let s = checked_sample(vp.sample_lanes(&e, above_or_up(above, o), uc), above);
-        let inputs_ok = on & o_ok & u_ok & p_ok;
-        let good = inputs_ok & s.valid;
-        let wi = Vec3::select(good, s.wi, Vec3::zero());
-        let weight = Rgb::select(good, s.weight, Rgb::zero());
-        unsafe {
-            store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
-            store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
-            store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
-        }
-        if let Some(fl) = flags {
-            for j in 0..width {
-                let v = if !on.lane(j) {
-                    0
-                } else if !inputs_ok.lane(j) {
-                    SAMPLE_FAILED | SAMPLE_INVALID_INPUT
-                } else if !good.lane(j) {
-                    SAMPLE_FAILED
-                } else if s.delta.lane(j) {
-                    SAMPLE_DELTA
-                } else {
-                    0
-                };
-                // SAFETY: the flags slice holds n values (checked by `sample_varying`).
-                unsafe { *fl.add(start + j) = v };
-            }
-        }
+        // SAFETY: start + width ≤ n for every output (checked by `sample_varying`).
+        unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok & p_ok, &s) };
         start += width;
     }
     report

@@ -434,6 +434,128 @@ class Material:
         result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
         return self._finish(s, result, strict)
 
+    # ---- spectral (ABI 0.6)
+
+    def _spectral_inputs(self, first, second, names, wavelengths, uv, duv):
+        arrays, nm, widths = [first, second, wavelengths], list(names) + ["wavelengths"], [3, 3, 4]
+        if uv is not None:
+            arrays.append(uv), nm.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), nm.append("duv"), widths.append(4)
+        vecs, lead, _ = _vectors(*arrays, names=nm, widths=widths, dtype=np.float32)
+        uv_ = vecs[3] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        return vecs[0], vecs[1], vecs[2], uv_, duv_, lead
+
+    def eval_spectral(self, wi, wo, wavelengths, uv=None, duv=None, *, strict: bool = True) -> np.ndarray:
+        """BRDF values f_r(wi, wo) at four wavelengths per element (``lq_eval_spectral``):
+        ``wavelengths`` (..., 4) in nm, result (..., 4) float32, 1/sr, no cosine.
+
+        Materials with spectral physics (:data:`LOBE_SPECTRAL`: the pearl paint's thin film,
+        HTSG) are evaluated at each wavelength; every other material returns its RGB value
+        upsampled (three box bands 360-490-590-830 nm that integrate back to the RGB value).
+        Wavelengths outside 360-830 nm are clamped; a non-finite one raises
+        InvalidElementError (``result``: zero there). ``uv`` / ``duv`` as in :meth:`eval`.
+        The pdf does not depend on wavelength: use :meth:`pdf`.
+        """
+        wi_, wo_, lam, uv_, duv_, lead = self._spectral_inputs(wi, wo, ("wi", "wo"), wavelengths, uv, duv)
+        n = wi_.shape[0]
+        f = np.zeros((n, 4), np.float32)
+        s = _native.lib.lq_eval_spectral(self._h(), n, _ptr(wi_), _ptr(wo_), _ptr(uv_), _ptr(duv_), _ptr(lam), _ptr(f))
+        return self._finish(s, f.reshape(lead + (4,)), strict)
+
+    def sample_spectral(self, wo, u, wavelengths, uv=None, duv=None, *, strict: bool = True) -> Sample:
+        """:meth:`sample` with the weight at four wavelengths per element
+        (``lq_sample_spectral``): ``wavelengths`` (..., 4) in nm; the :class:`Sample`'s
+        ``weight`` is (..., 4), f_r cos(theta_i) / pdf at each wavelength; ``wi``, ``pdf`` and
+        ``flags`` are those of :meth:`sample` with the same float32 inputs.
+        """
+        wo_, u_, lam, uv_, duv_, lead = self._spectral_inputs(wo, u, ("wo", "u"), wavelengths, uv, duv)
+        n = wo_.shape[0]
+        wi = np.zeros((n, 3), np.float32)
+        weight = np.zeros((n, 4), np.float32)
+        pdf = np.zeros(n, np.float32)
+        flags = np.zeros(n, np.uint32)
+        s = _native.lib.lq_sample_spectral(
+            self._h(), n, _ptr(wo_), _ptr(u_), _ptr(uv_), _ptr(duv_), _ptr(lam), _ptr(wi), _ptr(weight), _ptr(pdf),
+            _ptr(flags)
+        )
+        result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (4,)), pdf.reshape(lead), flags.reshape(lead))
+        return self._finish(s, result, strict)
+
+    # ---- per-element paint parameters (textures; ABI 0.6)
+
+    @staticmethod
+    def _paint_params(lead, base_color, flake_density, coat_roughness):
+        """The per-element parameter arrays broadcast to the elements (``lead`` shape): three
+        float32 colour columns (or None) and two float32 arrays (or None)."""
+        n = int(np.prod(lead, dtype=np.int64))
+        cols = [None, None, None]
+        if base_color is not None:
+            c = np.asarray(base_color, dtype=np.float32)
+            if c.ndim == 0 or c.shape[-1] != 3:
+                raise _shape_error(f"`base_color` must have shape (..., 3), got {c.shape}")
+            try:
+                c = np.broadcast_to(c, tuple(lead) + (3,)).reshape(n, 3)
+            except ValueError:
+                raise _shape_error(f"`base_color` {c.shape} does not broadcast to the elements {tuple(lead)}") from None
+            cols = [np.ascontiguousarray(c[:, k]) for k in range(3)]
+        out = []
+        for name, v in (("flake_density", flake_density), ("coat_roughness", coat_roughness)):
+            if v is None:
+                out.append(None)
+                continue
+            a = np.asarray(v, dtype=np.float32)
+            try:
+                out.append(np.ascontiguousarray(np.broadcast_to(a, tuple(lead)).reshape(n)))
+            except ValueError:
+                raise _shape_error(f"`{name}` {a.shape} does not broadcast to the elements {tuple(lead)}") from None
+        return cols, out[0], out[1]
+
+    def eval_pdf_varying(self, wi, wo, base_color=None, flake_density=None, coat_roughness=None, *,
+                         strict: bool = True):
+        """``(f, pdf)`` of a ``coated_paint`` whose parameters vary per element
+        (``lq_eval_pdf_varying``): element i is evaluated as the material with
+        ``base_color[i]`` ((..., 3), linear RGB in [0, 1]), ``flake_density[i]`` (%) and
+        ``coat_roughness[i]`` (GGX alpha in [0.001, 0.5]); a parameter left None keeps the
+        material's value. Each broadcasts against the directions. float32; the mean lobe (no
+        sparkle). An out-of-range or non-finite parameter makes its element zero and raises
+        InvalidElementError (``result`` holds the outputs; ``strict=False`` returns them).
+        Another model with a parameter given: InvalidArgumentError.
+        """
+        (wi_, wo_), lead, _ = _vectors(wi, wo, names=["wi", "wo"], widths=[3, 3], dtype=np.float32)
+        (r, g, b), d, a = self._paint_params(lead, base_color, flake_density, coat_roughness)
+        n = wi_.shape[0]
+        f = np.zeros((3, n), np.float32)
+        pdf = np.zeros(n, np.float32)
+        s = _native.lib.lq_eval_pdf_varying(
+            self._h(), n, *(_ptr(np.ascontiguousarray(x[:, k])) for x in (wi_, wo_) for k in range(3)),
+            _ptr(r), _ptr(g), _ptr(b), _ptr(d), _ptr(a), None, _ptr(f[0]), _ptr(f[1]), _ptr(f[2]), _ptr(pdf)
+        )
+        return self._finish(s, (f.T.reshape(tuple(lead) + (3,)), pdf.reshape(lead)), strict)
+
+    def sample_varying(self, wo, u, base_color=None, flake_density=None, coat_roughness=None, *,
+                       strict: bool = True) -> Sample:
+        """:meth:`sample` of a ``coated_paint`` whose parameters vary per element
+        (``lq_sample_varying``; parameters as :meth:`eval_pdf_varying`). An invalid element
+        is a failed sample (flags ``LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT``) and raises
+        InvalidElementError unless ``strict=False``."""
+        (wo_, u_), lead, _ = _vectors(wo, u, names=["wo", "u"], widths=[3, 3], dtype=np.float32)
+        (r, g, b), d, a = self._paint_params(lead, base_color, flake_density, coat_roughness)
+        n = wo_.shape[0]
+        wi = np.zeros((3, n), np.float32)
+        weight = np.zeros((3, n), np.float32)
+        pdf = np.zeros(n, np.float32)
+        flags = np.zeros(n, np.uint32)
+        s = _native.lib.lq_sample_varying(
+            self._h(), n, *(_ptr(np.ascontiguousarray(x[:, k])) for x in (wo_, u_) for k in range(3)),
+            _ptr(r), _ptr(g), _ptr(b), _ptr(d), _ptr(a), None, *(_ptr(x) for x in (*wi, *weight)), _ptr(pdf),
+            _ptr(flags)
+        )
+        result = Sample(wi.T.reshape(tuple(lead) + (3,)), weight.T.reshape(tuple(lead) + (3,)), pdf.reshape(lead),
+                        flags.reshape(lead))
+        return self._finish(s, result, strict)
+
     def check(self, level: Union[str, int] = "quick") -> CheckResult:
         """Runs the shipped checks (reciprocity, furnace, chi2, hard cases, precision)."""
         out = c_void_p()

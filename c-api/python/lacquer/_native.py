@@ -12,12 +12,12 @@ import ctypes
 import ctypes.util
 import os
 import sys
-from ctypes import CFUNCTYPE, POINTER, c_bool, c_char_p, c_double, c_float, c_int32, c_size_t, c_uint32, c_void_p
+from ctypes import CFUNCTYPE, POINTER, c_bool, c_char_p, c_double, c_float, c_int32, c_size_t, c_uint8, c_uint32, c_void_p
 from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 5
+ABI_MINOR = 6
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -87,6 +87,10 @@ _SIGNATURES = {
     "lq_pdf_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32]),
     "lq_eval_pdf_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32]),
     "lq_sample_spatial": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32, F32, U32]),
+    "lq_eval_spectral": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32]),
+    "lq_sample_spectral": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, F32, F32, F32, F32, U32]),
+    "lq_eval_pdf_varying": (c_int32, [c_void_p, c_size_t] + [F32] * 11 + [POINTER(c_uint8)] + [F32] * 4),
+    "lq_sample_varying": (c_int32, [c_void_p, c_size_t] + [F32] * 11 + [POINTER(c_uint8)] + [F32] * 7 + [U32]),
     "lq_eval_one": (c_int32, [c_void_p, F32, F32, F32]),
     "lq_pdf_one": (c_int32, [c_void_p, F32, F32, F32]),
     "lq_eval_pdf_one": (c_int32, [c_void_p, F32, F32, F32, F32]),

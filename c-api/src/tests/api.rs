@@ -73,7 +73,7 @@ fn expected<T: Real>(m: &Material, wi: &[T], wo: &[T], u: &[T]) -> Expected<T> {
 }
 
 /// The core's batch kernels' answers in f32 (SIMD lanes for lane models: they agree with the
-/// scalar f32 path within rounding, see rust-core/tests/batch.rs; the ABI must give exactly
+/// scalar f32 path within rounding, see rust-core/tests/integration/batch.rs; the ABI must give exactly
 /// these).
 fn expected_batch_f32(m: &Material, wi: &[f32], wo: &[f32], u: &[f32]) -> Expected<f32> {
     use lacquer_core::batch::{self, Dst1, Dst3, SampleOut, Src3};
@@ -204,7 +204,7 @@ fn every_model_matches_the_core_bit_for_bit() {
 fn spatial_inputs_reach_the_core_unchanged() {
     // With uv and duv, the ABI must return exactly the core's surface-point batch calls
     // (`batch::eval_pdf_at` / `sample_at`: the SIMD kernels with the flake lobes scaled per
-    // element, which rust-core/tests/batch.rs holds to Material::eval_at / sample_at within f32
+    // element, which rust-core/tests/integration/batch.rs holds to Material::eval_at / sample_at within f32
     // rounding); with uv alone, exactly Material::eval (the mean lobe); the pdf never depends
     // on position.
     let n = 500;
@@ -477,7 +477,7 @@ fn one_element_functions_match_the_batch_functions() {
             if lane_kernel {
                 // The batch runs SIMD lanes, `_one` the scalar f32 path: the same source, so
                 // they agree within f32 rounding (2e-5 relative here; measured ≤ 3e-6; the
-                // per-element test over hard cases is rust-core/tests/batch.rs).
+                // per-element test over hard cases is rust-core/tests/integration/batch.rs).
                 let close = |a: f32, b: f32, what: &str| {
                     assert!((a - b).abs() <= 2e-5 * a.abs().max(b.abs()) + 1e-6, "{} {what} {i}: {a} vs {b}", info.name)
                 };

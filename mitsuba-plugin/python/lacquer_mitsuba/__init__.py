@@ -17,19 +17,21 @@ the native plugin was not built, it registers a pure-Python fallback BSDF (``Lac
 that calls the Lacquer C library through the ``lacquer`` ctypes package, if that is installed.
 
 JIT variants (llvm_ad_*): the plugin calls a host library, which Dr.Jit cannot trace into its
-symbolic kernels. Render in wavefront mode: ``wavefront()`` switches
-``dr.JitFlag.SymbolicLoops`` and ``dr.JitFlag.SymbolicCalls`` off (``with wavefront(): ...``
-restores them afterwards).
+symbolic kernels; traced symbolically it evaluates to zero and warns once per object. Render
+scenes that use it with ``render(scene, ...)`` (``mi.render`` in wavefront mode when the scene
+holds a lacquer BSDF, ``uses_lacquer``), or inside ``with wavefront(): ...``, which switches
+``dr.JitFlag.SymbolicLoops`` and ``dr.JitFlag.SymbolicCalls`` off and restores them afterwards.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 
 __all__ = ["register", "install", "uninstall", "mitsuba_plugin_dir", "plugin_dir", "plugin_path", "build_info", "native_variants",
-           "wavefront", "LacquerError"]
+           "wavefront", "render", "uses_lacquer", "LacquerError"]
 
 #: Variants the native plugin registers (when built with the llvm variant).
 native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
@@ -208,3 +210,60 @@ def wavefront():
     finally:
         for f, v in zip(flags, old):
             dr.set_flag(f, v)
+
+
+#: Class names of the lacquer BSDFs: the native plugin and the Python fallback.
+_LACQUER_CLASSES = ("LacquerBSDF", "LacquerPyBSDF")
+
+_log = logging.getLogger("lacquer_mitsuba")
+
+
+def uses_lacquer(node) -> bool:
+    """True when the Mitsuba object ``node`` (a scene, shape, BSDF, ...) is or holds a lacquer
+    BSDF (native or Python fallback), found by walking the objects its ``traverse`` reports:
+    the shapes' BSDFs, BSDFs nested in ``twosided``/``blendbsdf``/``mask``, shape groups and
+    instances, emitters, sensors."""
+    import mitsuba as mi
+
+    seen = set()
+    found = []
+
+    def is_lacquer(obj):
+        return obj.class_name() in _LACQUER_CLASSES or type(obj).__name__ in _LACQUER_CLASSES
+
+    class Walk(mi.TraversalCallback):
+        def put(self, name, value, flags, cpptype=None):
+            if isinstance(value, mi.Object):
+                visit(value)
+
+    def visit(obj):
+        if found or obj is None or obj.ptr in seen:
+            return
+        seen.add(obj.ptr)
+        if is_lacquer(obj):
+            found.append(obj)
+            return
+        obj.traverse(Walk())
+
+    visit(node)
+    return bool(found)
+
+
+def render(scene, *args, **kwargs):
+    """``mi.render(scene, *args, **kwargs)``, in wavefront mode (``wavefront()``) when the
+    variant is a JIT one, Dr.Jit's symbolic loops or calls are on (Mitsuba's default) and the
+    scene holds a lacquer BSDF (``uses_lacquer``): there the plugin cannot run symbolically and
+    would render black. Logs what it did (logger ``lacquer_mitsuba``, level INFO) when it switches.
+    Other scenes and scalar variants render exactly as ``mi.render`` renders them."""
+    import drjit as dr
+    import mitsuba as mi
+
+    variant = mi.variant() or ""
+    symbolic = dr.flag(dr.JitFlag.SymbolicLoops) or dr.flag(dr.JitFlag.SymbolicCalls)
+    if variant.startswith(("llvm_", "cuda_")) and symbolic and uses_lacquer(scene):
+        _log.info("lacquer_mitsuba.render: the scene uses a lacquer BSDF, which cannot run inside "
+                  "Dr.Jit's symbolic loops and calls: rendering in wavefront mode (SymbolicLoops and "
+                  "SymbolicCalls off for this call; variant %s)", variant)
+        with wavefront():
+            return mi.render(scene, *args, **kwargs)
+    return mi.render(scene, *args, **kwargs)

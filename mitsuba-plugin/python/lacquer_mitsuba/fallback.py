@@ -6,7 +6,8 @@ liblacquer.so. Same parameters and conventions as the native plugin (``model`` /
 sparkle footprint and ``mi.traverse`` editing. RGB and monochrome variants only
 (spectral variants need the native plugin).
 
-In JIT variants it needs wavefront mode, like the native plugin. In scalar variants Mitsuba
+In JIT variants it needs wavefront mode, like the native plugin (traced symbolically it returns
+zero and warns once; ``lacquer_mitsuba.render`` switches to wavefront mode for scenes using it). In scalar variants Mitsuba
 calls it once per interaction, through Python: correct but slow (use the native plugin there).
 """
 
@@ -20,6 +21,14 @@ import numpy as np
 
 import drjit as dr
 import mitsuba as mi
+
+#: What the BSDF logs (once per object) when traced symbolically; the native plugin says the same.
+_SYMBOLIC_WARNING = (
+    "lacquer (Python fallback): the lacquer BSDF \"{}\" is being traced inside a symbolic Dr.Jit loop or call "
+    "(Mitsuba's default in JIT variants), where it evaluates to zero (black) and its samples are "
+    "invalid. Harmless if the scene being rendered does not use it (a symbolic call traces every "
+    "live BSDF). To render a scene that uses it, use wavefront mode: lacquer_mitsuba.render(scene, ...), "
+    "or `with lacquer_mitsuba.wavefront(): mi.render(scene)` (docs/mitsuba.md). Shown once per object.")
 
 _LQ_SAMPLE_DELTA = 1
 _LQ_SAMPLE_FAILED = 2
@@ -79,6 +88,11 @@ def _property_value(props, key):
     v = props[key]
     if isinstance(v, (bool, int, float, str)):
         return v
+    if isinstance(v, mi.Object):
+        raise RuntimeError(
+            f'lacquer: property "{key}" is a texture or object: the Python fallback (variant {mi.variant()}) '
+            "takes plain values only; textured base_color, flake_density and coat_roughness need the "
+            "native plugin (scalar_rgb, scalar_spectral, llvm_ad_rgb; docs/mitsuba.md, \"Textures\")")
     a = np.array(v, dtype=np.float64).ravel()
     if a.size == 3:
         return [float(x) for x in a]
@@ -167,14 +181,17 @@ def _make_class():
                 flags |= int(mi.BSDFFlags.SpatiallyVarying)
             self.m_flags = flags
 
-        @staticmethod
-        def _guard(what):
-            if dr.flag(dr.JitFlag.SymbolicScope):
-                raise RuntimeError(
-                    f"lacquer: {what} was called inside a symbolic Dr.Jit scope. The lacquer plugin calls "
-                    "the Lacquer C library on evaluated arrays and cannot run inside symbolic loops or "
-                    "calls: render in wavefront mode with dr.set_flag(dr.JitFlag.SymbolicLoops, False) "
-                    "and dr.set_flag(dr.JitFlag.SymbolicCalls, False) (see docs/mitsuba.md).")
+        def _symbolic(self):
+            """True when traced in a symbolic Dr.Jit loop or call, where the ctypes calls cannot
+            run: eval/pdf return zero and sample an invalid sample (as the native plugin), with
+            one warning per object. A symbolic virtual call traces every live BSDF, so objects
+            that the rendered scene does not use get here too, harmlessly."""
+            if not dr.flag(dr.JitFlag.SymbolicScope):
+                return False
+            if not getattr(self, "_warned_symbolic", False):
+                self._warned_symbolic = True
+                mi.Log(mi.LogLevel.Warn, _SYMBOLIC_WARNING.format(self.id() or "(no id)"))
+            return True
 
         def _tinted(self, value, si, active):
             return value * self.tint.eval(si, active) if self.tint is not None else value
@@ -184,8 +201,7 @@ def _make_class():
                        for b in (mi.BSDFFlags.DiffuseReflection, mi.BSDFFlags.GlossyReflection))
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            self._guard("eval/pdf")
-            if not self._smooth_on(ctx):
+            if self._symbolic() or not self._smooth_on(ctx):
                 return mi.Spectrum(0.0), mi.Float(0.0)
             f, p = self.material.eval_pdf(_to_np3(wo), _to_np3(si.wi), strict=False)
             value = _spectrum(f) * dr.maximum(wo.z, 0.0)
@@ -199,7 +215,8 @@ def _make_class():
             return self.eval_pdf(ctx, si, wo, active)[1]
 
         def sample(self, ctx, si, sample1, sample2, active=True):
-            self._guard("sample")
+            if self._symbolic():
+                return dr.zeros(mi.BSDFSample3f), mi.Spectrum(0.0)
             n = dr.width(si.wi) if _is_jit() else 1
             u = np.stack([np.broadcast_to(np.array(x, dtype=np.float32), (n,))
                           for x in (sample1, sample2.x, sample2.y)], axis=1)

@@ -60,6 +60,24 @@ enum Item {
     Rect { x: f64, y: f64, w: f64, h: f64, fill: [u8; 3] },
 }
 
+impl Item {
+    /// Black text.
+    fn text(x: f64, y: f64, text: String, size: f64, anchor: &'static str) -> Item {
+        Item::Text { x, y, text, size, anchor, color: [0; 3] }
+    }
+
+    /// A data series drawn through `pts` (already in pixels), carrying its data for the SVG.
+    fn series(s: &Series, pts: Vec<(f64, f64)>, color: [u8; 3]) -> Item {
+        Item::Line {
+            pts,
+            color,
+            width: 2.0,
+            dashed: s.style == Style::Dashed,
+            data: Some((s.label.clone(), s.points.clone())),
+        }
+    }
+}
+
 /// A laid-out figure.
 #[derive(Clone, Debug)]
 pub struct Figure {
@@ -156,14 +174,7 @@ impl Plot {
                 dashed: s.style == Style::Dashed,
                 data: None,
             });
-            items.push(Item::Text {
-                x: x + 28.0,
-                y: yy + 4.0,
-                text: s.label.clone(),
-                size: 12.0,
-                anchor: "start",
-                color: [0; 3],
-            });
+            items.push(Item::text(x + 28.0, yy + 4.0, s.label.clone(), 12.0, "start"));
         }
     }
 
@@ -194,14 +205,7 @@ impl Plot {
                 dashed: false,
                 data: None,
             });
-            items.push(Item::Text {
-                x: px(t),
-                y: h - bottom + 16.0,
-                text: fmt_tick(t),
-                size: 11.0,
-                anchor: "middle",
-                color: [0; 3],
-            });
+            items.push(Item::text(px(t), h - bottom + 16.0, fmt_tick(t), 11.0, "middle"));
         }
         let yt: Vec<f64> =
             if self.log_y { (y0 as i64..=y1 as i64).map(|e| e as f64).collect() } else { ticks(y0, y1, 6) };
@@ -215,14 +219,7 @@ impl Plot {
                 dashed: false,
                 data: None,
             });
-            items.push(Item::Text {
-                x: left - 6.0,
-                y: yy + 4.0,
-                text: label,
-                size: 11.0,
-                anchor: "end",
-                color: [0; 3],
-            });
+            items.push(Item::text(left - 6.0, yy + 4.0, label, 11.0, "end"));
         }
         let frame = vec![(left, top), (w - right, top), (w - right, h - bottom), (left, h - bottom), (left, top)];
         items.push(Item::Line { pts: frame, color: [0; 3], width: 1.0, dashed: false, data: None });
@@ -243,38 +240,11 @@ impl Plot {
                     .map(|&(x, y)| (px(x), py(y)))
                     .collect();
             }
-            items.push(Item::Line {
-                pts,
-                color,
-                width: 2.0,
-                dashed: s.style == Style::Dashed,
-                data: Some((s.label.clone(), s.points.clone())),
-            });
+            items.push(Item::series(s, pts, color));
         }
-        items.push(Item::Text {
-            x: w / 2.0,
-            y: 20.0,
-            text: self.title.clone(),
-            size: 14.0,
-            anchor: "middle",
-            color: [0; 3],
-        });
-        items.push(Item::Text {
-            x: (left + w - right) / 2.0,
-            y: h - 12.0,
-            text: self.xlabel.clone(),
-            size: 12.0,
-            anchor: "middle",
-            color: [0; 3],
-        });
-        items.push(Item::Text {
-            x: 8.0,
-            y: top - 8.0,
-            text: self.ylabel.clone(),
-            size: 12.0,
-            anchor: "start",
-            color: [0; 3],
-        });
+        items.push(Item::text(w / 2.0, 20.0, self.title.clone(), 14.0, "middle"));
+        items.push(Item::text((left + w - right) / 2.0, h - 12.0, self.xlabel.clone(), 12.0, "middle"));
+        items.push(Item::text(8.0, top - 8.0, self.ylabel.clone(), 12.0, "start"));
         let longest = self.series.iter().map(|s| s.label.chars().count()).max().unwrap_or(0) as f64;
         self.legend(&mut items, (w - right - 50.0 - 7.0 * longest).max(left + 10.0), top + 16.0);
         Figure { width, height, items }
@@ -310,14 +280,7 @@ impl Plot {
             let pts: Vec<(f64, f64)> = (0..=90).map(|k| at(-90.0 + 2.0 * k as f64, rr)).collect();
             items.push(Item::Line { pts, color: grey, width: 1.0, dashed: false, data: None });
             let label = if self.log_y { fmt_tick(10f64.powf(t)) } else { fmt_tick(t) };
-            items.push(Item::Text {
-                x: cx + rr,
-                y: cy + 14.0,
-                text: label,
-                size: 10.0,
-                anchor: "middle",
-                color: [0; 3],
-            });
+            items.push(Item::text(cx + rr, cy + 14.0, label, 10.0, "middle"));
         }
         for a in [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0] {
             let (ex, ey) = at(a, radius);
@@ -329,43 +292,16 @@ impl Plot {
                 data: None,
             });
             let (tx, ty) = at(a, radius + 12.0);
-            items.push(Item::Text {
-                x: tx,
-                y: ty + 4.0,
-                text: format!("{a:.0}"),
-                size: 10.0,
-                anchor: "middle",
-                color: [0; 3],
-            });
+            items.push(Item::text(tx, ty + 4.0, format!("{a:.0}"), 10.0, "middle"));
         }
         for (i, s) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
             let pts =
                 s.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).map(|&(x, y)| at(x, rad(y))).collect();
-            items.push(Item::Line {
-                pts,
-                color,
-                width: 2.0,
-                dashed: s.style == Style::Dashed,
-                data: Some((s.label.clone(), s.points.clone())),
-            });
+            items.push(Item::series(s, pts, color));
         }
-        items.push(Item::Text {
-            x: w / 2.0,
-            y: 20.0,
-            text: self.title.clone(),
-            size: 14.0,
-            anchor: "middle",
-            color: [0; 3],
-        });
-        items.push(Item::Text {
-            x: 8.0,
-            y: h - 8.0,
-            text: format!("radius: {}", self.ylabel),
-            size: 11.0,
-            anchor: "start",
-            color: [0; 3],
-        });
+        items.push(Item::text(w / 2.0, 20.0, self.title.clone(), 14.0, "middle"));
+        items.push(Item::text(8.0, h - 8.0, format!("radius: {}", self.ylabel), 11.0, "start"));
         self.legend(&mut items, w - 250.0, 44.0);
         Figure { width, height, items }
     }

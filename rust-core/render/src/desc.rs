@@ -40,7 +40,18 @@
 //! row 0 at v = 0; uvs, tangents and bitangents one per vertex) and
 //! `"orange_peel": {amplitude_um, wavelength_mm, metres_per_unit, coords}` (the clearcoat's
 //! waviness: a height field of that RMS height and wavelength over the per-vertex metric
-//! coordinates `coords`, in metres).
+//! coordinates `coords`, in metres), `"bump": {width, height, pixels, strength, distance, uvs}`
+//! (a height image as Blender's Bump node reads it: `pixels` are `width × height` heights,
+//! `distance` world units per unit of height), and `"texture_uvs"` (per-vertex coordinates of image
+//! textures, a host's UV map; default `uvs`).
+//!
+//! A material given as JSON (named or inline) may carry `"textures"`: images on its
+//! `base_color`, `flake_density` and `coat_roughness` (a `coated_paint` with the Lambert
+//! pigment), each `{"file": "albedo.png"}` (PNG, EXR or HDR, relative to the scene; optional
+//! `"colorspace": "srgb" | "linear"`, `"interpolation": "linear" | "closest"`, and `"scale"` for
+//! the scalars) or `{"image": NAME}`, an entry of the scene's top-level
+//! `"images": {NAME: {width, height, pixels}}` (linear RGB, row 0 at v = 0, inline or base64).
+//! See [`crate::texture`] for the lookup, the units and the checks.
 //!
 //! Lights: `point` (position, intensity W/sr), `spot` (position, target, intensity,
 //! cone_deg = half angle, blend_deg = soft edge), `sun` (direction toward the sun,
@@ -57,14 +68,16 @@ use crate::camera::Camera;
 use crate::env::Environment;
 use crate::geom::{v3, v3a, V3};
 use crate::lights::Light;
-use crate::perturb::{NormalMap, OrangePeel, Perturbation};
+use crate::perturb::{BumpMap, NormalMap, OrangePeel, Perturbation};
 use crate::scene::{Scene, SceneBuilder};
 use crate::shapes::{Mesh, Quad, Sphere};
+use crate::texture::{Image, ImageDesc, PaintTextures, TexturesDesc};
 use lacquer::{Material, Rgb};
 use serde::Deserialize;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A colour in JSON: a grey or `[r, g, b]`.
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -244,6 +257,33 @@ pub struct MeshData {
     /// Orange peel of a clearcoat perturbing the shading normal (optional).
     #[serde(default)]
     pub orange_peel: Option<OrangePeelDesc>,
+    /// Vertex coordinates of image textures (a UV map; optional, default `uvs`).
+    #[serde(default)]
+    pub texture_uvs: Option<Packed<f32, 2>>,
+    /// A bump map perturbing the shading normal (optional).
+    #[serde(default)]
+    pub bump: Option<BumpDesc>,
+}
+
+/// A mesh's bump map (`meshes.NAME.bump`; [`crate::perturb::BumpMap`]): a height image, the
+/// Bump node's strength and distance, and per-vertex texture coordinates.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BumpDesc {
+    /// Image width in texels.
+    pub width: usize,
+    /// Image height in texels.
+    pub height: usize,
+    /// `width × height` heights, row 0 (v = 0) first.
+    pub pixels: Packed<f32, 1>,
+    /// Strength (default 1).
+    #[serde(default = "one")]
+    pub strength: f64,
+    /// Distance: world units per unit of height (default 1; negative inverts).
+    #[serde(default = "one")]
+    pub distance: f64,
+    /// Texture coordinates per vertex.
+    pub uvs: Packed<f32, 2>,
 }
 
 /// A mesh's tangent-space normal map (`meshes.NAME.normal_map`; [`crate::perturb`]): the image
@@ -290,6 +330,7 @@ pub fn perturbation(
     n: usize,
     normal_map: Option<&NormalMapDesc>,
     orange_peel: Option<&OrangePeelDesc>,
+    bump: Option<&BumpDesc>,
 ) -> Result<Option<Box<Perturbation>>, String> {
     let mut out = Perturbation::default();
     if let Some(m) = normal_map {
@@ -342,7 +383,28 @@ pub fn perturbation(
             out.orange_peel = Some((peel, p.coords.0.iter().map(|c| c.map(f64::from)).collect()));
         }
     }
-    Ok((out.normal_map.is_some() || out.orange_peel.is_some()).then(|| Box::new(out)))
+    if let Some(m) = bump {
+        if m.width == 0 || m.height == 0 || m.width.checked_mul(m.height) != Some(m.pixels.0.len()) {
+            return Err(format!("bump: {} pixels for {}×{} texels", m.pixels.0.len(), m.width, m.height));
+        }
+        if m.uvs.0.len() != n {
+            return Err(format!("bump: uvs need one entry per position ({n})"));
+        }
+        let finite = m.pixels.0.iter().flatten().chain(m.uvs.0.iter().flatten()).all(|v| v.is_finite());
+        let ok = finite && m.strength.is_finite() && m.strength >= 0.0 && m.distance.is_finite();
+        if !ok {
+            return Err("bump: values must be finite and the strength >= 0".into());
+        }
+        let map = BumpMap {
+            width: m.width,
+            height: m.height,
+            texels: m.pixels.0.iter().map(|t| t[0]).collect(),
+            strength: m.strength as f32,
+            distance: m.distance as f32,
+        };
+        out.bump = Some((map, m.uvs.0.clone()));
+    }
+    Ok((out.normal_map.is_some() || out.orange_peel.is_some() || out.bump.is_some()).then(|| Box::new(out)))
 }
 
 /// A scene object.
@@ -521,6 +583,9 @@ pub struct SceneDesc {
     /// Named meshes that `mesh` objects instance by name.
     #[serde(default)]
     pub meshes: BTreeMap<String, MeshData>,
+    /// Named inline images that materials' `textures` bind by name ([`crate::texture`]).
+    #[serde(default)]
+    pub images: BTreeMap<String, ImageDesc>,
     /// Objects.
     pub objects: Vec<ObjectDesc>,
     /// Lights.
@@ -583,6 +648,7 @@ pub fn inline_mesh(
         uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
         triangles: triangles.to_vec(),
         perturb: None,
+        texture_uvs: Vec::new(),
     })
 }
 
@@ -680,16 +746,38 @@ fn for_each_normal(mesh: &mut Mesh, f: impl Fn(V3) -> V3) {
     }
 }
 
-/// Resolves a material reference: a name in `named`, a preset name, or inline JSON.
-fn resolve_material(v: &Value, named: &BTreeMap<String, Material>) -> Result<Material, String> {
+/// A resolved material reference: the material and its textured parameters.
+type Resolved = (Material, Option<Arc<PaintTextures>>);
+
+/// What textures resolve against: the scene's folder, its inline images, the files read so far.
+struct TexContext<'a> {
+    base: &'a Path,
+    images: BTreeMap<String, Arc<Image>>,
+    files: BTreeMap<(String, bool), Arc<Image>>,
+}
+
+/// Resolves a material reference: a name in `named`, a preset name, or inline JSON (which
+/// may carry `"textures"`, [`crate::texture`]).
+fn resolve_material(v: &Value, named: &BTreeMap<String, Resolved>, tex: &mut TexContext) -> Result<Resolved, String> {
     match v {
         Value::String(s) => {
             if let Some(m) = named.get(s) {
                 return Ok(m.clone());
             }
-            Material::preset(s).map_err(|e| format!("material \"{s}\": not in \"materials\" and {e}"))
+            let m = Material::preset(s).map_err(|e| format!("material \"{s}\": not in \"materials\" and {e}"))?;
+            Ok((m, None))
         }
-        Value::Object(_) => Material::from_value(v).map_err(|e| e.to_string()),
+        Value::Object(o) => {
+            let Some(t) = o.get("textures") else {
+                return Ok((Material::from_value(v).map_err(|e| e.to_string())?, None));
+            };
+            let mut plain = o.clone();
+            plain.remove("textures");
+            let m = Material::from_value(&Value::Object(plain)).map_err(|e| e.to_string())?;
+            let desc: TexturesDesc = serde_json::from_value(t.clone()).map_err(|e| format!("textures: {e}"))?;
+            let t = PaintTextures::build(&desc, &m, tex.base, &tex.images, &mut tex.files)?;
+            Ok((m, Some(Arc::new(t))))
+        }
         _ => Err("a material is a name, a preset name or a JSON object".into()),
     }
 }
@@ -710,12 +798,17 @@ impl SceneDesc {
         height: u32,
         override_material: Option<&Material>,
     ) -> Result<Scene, String> {
+        let mut tex = TexContext { base, images: BTreeMap::new(), files: BTreeMap::new() };
+        for (k, d) in &self.images {
+            tex.images.insert(k.clone(), Arc::new(d.image(k).map_err(|e| format!("images.{k}: {e}"))?));
+        }
         let mut named = BTreeMap::new();
         for (k, v) in &self.materials {
-            named.insert(k.clone(), resolve_material(v, &named).map_err(|e| format!("materials.{k}: {e}"))?);
+            let r = resolve_material(v, &named, &mut tex).map_err(|e| format!("materials.{k}: {e}"))?;
+            named.insert(k.clone(), r);
         }
         if let Some(m) = override_material {
-            named.insert("paint".to_string(), m.clone());
+            named.insert("paint".to_string(), (m.clone(), None));
         }
         let mut shared = BTreeMap::new();
         for (k, m) in &self.meshes {
@@ -726,8 +819,18 @@ impl SceneDesc {
                 m.uvs.as_ref().map(|v| &v.0[..]),
             )
             .map_err(|e| format!("meshes.{k}: {e}"))?;
-            mesh.perturb = perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref())
-                .map_err(|e| format!("meshes.{k}: {e}"))?;
+            mesh.perturb =
+                perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref(), m.bump.as_ref())
+                    .map_err(|e| format!("meshes.{k}: {e}"))?;
+            if let Some(t) = &m.texture_uvs {
+                if t.0.len() != mesh.positions.len() || t.0.iter().flatten().any(|v| !v.is_finite()) {
+                    return Err(format!(
+                        "meshes.{k}: texture_uvs need one finite entry per position ({})",
+                        mesh.positions.len()
+                    ));
+                }
+                mesh.texture_uvs = t.0.clone();
+            }
             shared.insert(k.clone(), mesh);
         }
         let mut b = SceneBuilder::new();
@@ -737,7 +840,8 @@ impl SceneDesc {
             if let Some((_, i)) = cache.iter().find(|(k, _)| *k == key) {
                 return Ok(*i);
             }
-            let i = b.material(resolve_material(v, &named)?);
+            let (m, t) = resolve_material(v, &named, &mut tex)?;
+            let i = b.textured_material(m, t);
             cache.push((key, i));
             Ok(i)
         };

@@ -15,7 +15,9 @@
 use crate::camera::CameraRay;
 use crate::geom::{offset_origin, Frame, Ray, V3};
 use crate::scene::{Hit, Scene};
+use crate::texture::{PaintTextures, Texels};
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
+use lacquer::paint::varying::PaintTexture;
 use lacquer::rng::Pcg32;
 use lacquer::{BsdfSample, Material, Rgb, SurfacePoint};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -300,6 +302,8 @@ struct Vertex {
     at: Option<SurfacePoint>,
     light: Option<LightVisit>,
     u: [f32; 3],
+    /// The material's textured parameters at the hit ([`crate::texture`]), if it has any.
+    texels: Option<Texels>,
 }
 
 /// What the material returned for a vertex.
@@ -363,6 +367,7 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
             return None;
         }
         let material = hit.material?;
+        let texels = scene.textures[material as usize].as_ref().map(|t| t.lookup(hit.tex_uv));
 
         // Two-sided surfaces: turn the normals toward the viewer.
         let wo_world = -path.ray.d;
@@ -396,7 +401,7 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
             })
         });
         let u = rng.next3();
-        return Some(Vertex { path: 0, material, frame, ng, p, wo: frame.to_local(wo_world), at, light, u });
+        return Some(Vertex { path: 0, material, frame, ng, p, wo: frame.to_local(wo_world), at, light, u, texels });
     }
 }
 
@@ -455,6 +460,8 @@ struct ShadeBuffers {
     flags: Vec<u32>,
     eval_active: Vec<u8>,
     at: Vec<SurfacePoint>,
+    /// Textured parameters per vertex: red, green, blue, flake density, coat roughness.
+    tex: [Vec<f32>; 5],
 }
 
 impl ShadeBuffers {
@@ -469,6 +476,9 @@ impl ShadeBuffers {
         self.sample_pdf.resize(n, 0.0);
         self.flags.resize(n, 0);
         self.eval_active.resize(n, 0);
+        for v in &mut self.tex {
+            v.resize(n, 0.0);
+        }
     }
 }
 
@@ -485,8 +495,17 @@ fn dst3(v: &mut [Vec<f32>; 3]) -> Dst3<'_, f32> {
 /// calls through the SIMD kernels: the light samples' `f` and density, then the material's
 /// samples. Camera-ray hits carry their footprint, so a spatially varying material (sparkle)
 /// gets `eval_at`/`sample_at` values: the batch calls at surface points scale the flake lobes
-/// per element.
-fn shade_group(mat: &Material, vertices: &[Vertex], group: &[u32], buf: &mut ShadeBuffers, out: &mut [Shaded]) {
+/// per element. A material with textured parameters (`textures`) is shaded through the
+/// per-element calls instead (`batch::eval_pdf_varying`, `sample_varying`: the mean lobe, no
+/// sparkle) with each vertex's texel values.
+fn shade_group(
+    mat: &Material,
+    textures: Option<&PaintTextures>,
+    vertices: &[Vertex],
+    group: &[u32],
+    buf: &mut ShadeBuffers,
+    out: &mut [Shaded],
+) {
     let n = group.len();
     buf.resize(n);
     // No footprint: the mean BRDF (a non-finite surface point means exactly that).
@@ -502,23 +521,15 @@ fn shade_group(mat: &Material, vertices: &[Vertex], group: &[u32], buf: &mut Sha
         }
         buf.eval_active[k] = u8::from(v.light.is_some());
         buf.at.push(v.at.unwrap_or(mean));
+        if let Some(t) = &v.texels {
+            for (c, x) in t.iter().enumerate() {
+                buf.tex[c][k] = *x;
+            }
+        }
     }
-    // The views are built from arrays of one length, so the calls cannot fail.
-    {
-        let (wo, wi) = (src3(&buf.wo), src3(&buf.wi_light));
-        let f = dst3(&mut buf.f);
-        let pdf = Dst1::new(&mut buf.pdf);
-        let _ = batch::eval_pdf_at(mat, &wi, &wo, &buf.at, Some(&buf.eval_active), Some(&f), Some(&pdf));
-    }
-    {
-        let (wo, u) = (src3(&buf.wo), src3(&buf.u));
-        let mut so = SampleOut {
-            wi: dst3(&mut buf.wi),
-            weight: dst3(&mut buf.weight),
-            pdf: Dst1::new(&mut buf.sample_pdf),
-            flags: Some(&mut buf.flags),
-        };
-        let _ = batch::sample_at(mat, &wo, &u, &buf.at, None, &mut so);
+    match textures {
+        Some(t) => shade_varying(mat, t, buf, n),
+        None => shade_plain(mat, buf),
     }
     for (k, &vi) in group.iter().enumerate() {
         let s = &mut out[vi as usize];
@@ -534,6 +545,52 @@ fn shade_group(mat: &Material, vertices: &[Vertex], group: &[u32], buf: &mut Sha
             delta: flags & batch::SAMPLE_DELTA != 0,
         });
     }
+}
+
+/// The batch calls of an untextured material at the staged surface points (sparkle).
+fn shade_plain(mat: &Material, buf: &mut ShadeBuffers) {
+    // The views are built from arrays of one length, so the calls cannot fail.
+    {
+        let (wo, wi) = (src3(&buf.wo), src3(&buf.wi_light));
+        let f = dst3(&mut buf.f);
+        let pdf = Dst1::new(&mut buf.pdf);
+        let _ = batch::eval_pdf_at(mat, &wi, &wo, &buf.at, Some(&buf.eval_active), Some(&f), Some(&pdf));
+    }
+    let (wo, u) = (src3(&buf.wo), src3(&buf.u));
+    let mut so = SampleOut {
+        wi: dst3(&mut buf.wi),
+        weight: dst3(&mut buf.weight),
+        pdf: Dst1::new(&mut buf.sample_pdf),
+        flags: Some(&mut buf.flags),
+    };
+    let _ = batch::sample_at(mat, &wo, &u, &buf.at, None, &mut so);
+}
+
+/// The per-element batch calls of a material with textured parameters (`n` vertices staged).
+fn shade_varying(mat: &Material, t: &PaintTextures, buf: &mut ShadeBuffers, n: usize) {
+    let [r, g, b, density, rough] = &buf.tex;
+    let tex = PaintTexture {
+        base_color: t.base_color.as_ref().map(|_| [&r[..n], &g[..n], &b[..n]]),
+        flake_density: t.flake_density.as_ref().map(|_| &density[..n]),
+        coat_roughness: t.coat_roughness.as_ref().map(|_| &rough[..n]),
+    };
+    // The views are built from arrays of one length, and the scene checked that the material
+    // can vary these parameters (`PaintTextures::build`), so the calls cannot fail; an element
+    // whose values the core rejects gets zero outputs and a failed sample.
+    {
+        let (wo, wi) = (src3(&buf.wo), src3(&buf.wi_light));
+        let f = dst3(&mut buf.f);
+        let pdf = Dst1::new(&mut buf.pdf);
+        let _ = batch::eval_pdf_varying(mat, &tex, &wi, &wo, Some(&buf.eval_active), Some(&f), Some(&pdf));
+    }
+    let (wo, u) = (src3(&buf.wo), src3(&buf.u));
+    let mut so = SampleOut {
+        wi: dst3(&mut buf.wi),
+        weight: dst3(&mut buf.weight),
+        pdf: Dst1::new(&mut buf.sample_pdf),
+        flags: Some(&mut buf.flags),
+    };
+    let _ = batch::sample_varying(mat, &tex, &wo, &u, None, &mut so);
 }
 
 /// One pixel between rounds of a progressive render: its random stream and the running sums
@@ -621,7 +678,8 @@ fn render_tile(
             }
             for (mi, g) in groups.iter().enumerate() {
                 if !g.is_empty() {
-                    shade_group(&scene.materials[mi], &vertices, g, &mut buf, &mut shaded);
+                    let tex = scene.textures[mi].as_deref();
+                    shade_group(&scene.materials[mi], tex, &vertices, g, &mut buf, &mut shaded);
                 }
             }
             next.clear();

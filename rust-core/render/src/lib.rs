@@ -47,6 +47,7 @@ pub mod perturb;
 pub mod scene;
 pub mod shapes;
 pub mod sheet;
+pub mod texture;
 
 pub use integrator::{render, render_quiet, Cancelled, Framebuffer, Progressive, RenderSettings, RenderStats};
 pub use job::{render_job, JobError, JobRender, RenderJob};

@@ -11,6 +11,13 @@
 //! gives `n = normalize((2c_r − 1) T + (2c_g − 1) B + (2c_b − 1) N)` with the interpolated
 //! tangent T, bitangent B and normal N, then `normalize(N + strength (n − N))`.
 //!
+//! **Bump map** (Cycles' `svm_node_set_bump`, world space): a height image `H(u, v)` (grey,
+//! bilinear, repeating, as the normal map) gives the surface gradient `∇H = H_u ∇u + H_v ∇v`
+//! (`∇u`, `∇v` the gradients of the texture coordinates along the triangle, per world unit;
+//! `H_u`, `H_v` the bilinear interpolant's derivatives), then
+//! `n' = normalize(n − distance ∇H)` and `normalize(strength n' + (1 − strength) n)`, as the
+//! Bump node (`invert`: a negative distance). Applied after the normal map, before orange peel.
+//!
 //! **Orange peel**: the coat's height over the surface is a sum of [`PEEL_WAVES`] plane waves in
 //! the object's metric coordinates `c` (metres on the object, per vertex):
 //! `h(c) = A √(2/K) Σ_k sin(2π d_k·c / λ + φ_k)`, of RMS height A (the amplitude) and wavelength
@@ -72,6 +79,45 @@ impl NormalMap {
     }
 }
 
+/// A height image for bump mapping (Blender's Bump node fed by an Image Texture).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BumpMap {
+    /// Width in texels.
+    pub width: usize,
+    /// Height in texels.
+    pub height: usize,
+    /// Heights, row 0 first (v = 0); shared by instances.
+    pub texels: Arc<[f32]>,
+    /// Blender's Bump strength (1 = full, 0 = the unperturbed normal).
+    pub strength: f32,
+    /// Blender's Bump distance: world units of displacement per unit of height (negative: invert).
+    pub distance: f32,
+}
+
+impl BumpMap {
+    /// The bilinear, repeating height at `uv` and its derivatives `(H, ∂H/∂u, ∂H/∂v)`.
+    #[must_use]
+    pub fn sample(&self, uv: [f32; 2]) -> (f32, f32, f32) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let x = f64::from(uv[0]) * w as f64 - 0.5;
+        let y = f64::from(uv[1]) * h as f64 - 0.5;
+        if !(x.is_finite() && y.is_finite()) {
+            return (0.0, 0.0, 0.0);
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (tx, ty) = ((x - x0) as f32, (y - y0) as f32);
+        let at = |i: i64, j: i64| self.texels[j.rem_euclid(h) as usize * self.width + i.rem_euclid(w) as usize];
+        let (i, j) = (x0 as i64, y0 as i64);
+        let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
+        let top = a + (b - a) * tx;
+        let bottom = c + (d - c) * tx;
+        let value = top + (bottom - top) * ty;
+        let du = ((b - a) + ((d - c) - (b - a)) * ty) * self.width as f32;
+        let dv = (bottom - top) * self.height as f32;
+        (value, du, dv)
+    }
+}
+
 /// Orange peel of the clearcoat: RMS height and wavelength in metres.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OrangePeel {
@@ -118,6 +164,8 @@ pub struct Perturbation {
     pub normal_map: Option<MappedNormals>,
     /// Orange peel, with per-vertex metric coordinates (m).
     pub orange_peel: Option<(OrangePeel, Vec<[f64; 3]>)>,
+    /// A bump map, with per-vertex texture coordinates.
+    pub bump: Option<(BumpMap, Vec<[f32; 2]>)>,
 }
 
 fn lerp3(v: [V3; 3], b: [f32; 3]) -> V3 {
@@ -131,6 +179,35 @@ fn normalize_or(v: V3, fallback: V3) -> V3 {
     } else {
         fallback
     }
+}
+
+/// The bumped normal at barycentrics `b` of a triangle with world positions `p` and texture
+/// coordinates `uv` (the Bump node's formula; `n` unchanged where the uv map is degenerate).
+fn bump_normal(bump: &BumpMap, uv: [[f32; 2]; 3], b: [f32; 3], p: [V3; 3], n: V3) -> V3 {
+    let at = [uv[0][0] * b[0] + uv[1][0] * b[1] + uv[2][0] * b[2], uv[0][1] * b[0] + uv[1][1] * b[1] + uv[2][1] * b[2]];
+    let (_, hu, hv) = bump.sample(at);
+    // ∇u and ∇v along the triangle: the dual basis of ∂p/∂u, ∂p/∂v.
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let (du1, dv1) = (uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]);
+    let (du2, dv2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
+    let det = du1 * dv2 - dv1 * du2;
+    if !(det.abs() > 1e-20) {
+        return n;
+    }
+    let dpdu = (e1 * dv2 - e2 * dv1) / det;
+    let dpdv = (e2 * du1 - e1 * du2) / det;
+    let (g11, g12, g22) = (dpdu.dot(dpdu), dpdu.dot(dpdv), dpdv.dot(dpdv));
+    let gdet = g11 * g22 - g12 * g12;
+    if !(gdet > 1e-30 * g11 * g22 && gdet.is_finite()) {
+        return n;
+    }
+    let grad_u = (dpdu * g22 - dpdv * g12) / gdet;
+    let grad_v = (dpdv * g11 - dpdu * g12) / gdet;
+    let grad = grad_u * hu + grad_v * hv;
+    let tangential = grad - n * grad.dot(n);
+    let bumped = normalize_or(n - tangential * bump.distance, n);
+    let s = bump.strength.max(0.0);
+    normalize_or(bumped * s + n * (1.0 - s), n)
 }
 
 impl Perturbation {
@@ -149,6 +226,9 @@ impl Perturbation {
             let c = map.sample(uv);
             let mapped = normalize_or(t * (2.0 * c[0] - 1.0) + bt * (2.0 * c[1] - 1.0) + n * (2.0 * c[2] - 1.0), n);
             n = normalize_or(n + (mapped - n) * map.strength.max(0.0), n);
+        }
+        if let Some((bump, uvs)) = &self.bump {
+            n = bump_normal(bump, idx.map(|i| uvs[i]), b, p, n);
         }
         if let Some((peel, coords)) = &self.orange_peel {
             let c = |i: usize| coords[idx[i]];
@@ -193,7 +273,7 @@ mod tests {
         let (t, bt, n) = (v3(1.0, 0.0, 0.0), v3(0.0, 1.0, 0.0), v3(0.0, 0.0, 1.0));
         let mk = |map: NormalMap| Perturbation {
             normal_map: Some((map, vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], vec![t; 3], vec![bt; 3])),
-            orange_peel: None,
+            ..Default::default()
         };
         let same = mk(flat_map([0.5, 0.5, 1.0])).apply(idx, b, p, n);
         assert!((same - n).length() < 1e-6, "{same:?}");
@@ -258,7 +338,7 @@ mod tests {
         let peel = OrangePeel { amplitude_m: 20e-6, wavelength_m: 1e-3, metres_per_unit: 0.5 };
         let p = [v3(0.0, 0.0, 0.0), v3(0.01, 0.0, 0.0), v3(0.0, 0.01, 0.0)];
         let coords = p.iter().map(|q| [0.5 * f64::from(q.x), 0.5 * f64::from(q.y), 0.5 * f64::from(q.z)]).collect();
-        let pert = Perturbation { normal_map: None, orange_peel: Some((peel, coords)) };
+        let pert = Perturbation { orange_peel: Some((peel, coords)), ..Default::default() };
         let b = [0.3, 0.3, 0.4];
         let n = pert.apply([0, 1, 2], b, p, v3(0.0, 0.0, 1.0));
         let c = [0.5 * 0.003, 0.5 * 0.004, 0.0];
@@ -266,5 +346,28 @@ mod tests {
         let want = v3(-g[0] as f32, -g[1] as f32, 1.0).normalize();
         assert!((n - want).length() < 1e-5, "{n:?} vs {want:?}");
         assert!(n.z < 0.9999, "orange peel of 20 µm at 1 mm tilts the normal visibly: {n:?}");
+    }
+
+    #[test]
+    fn bump_map_tilts_by_distance_times_the_height_slope() {
+        // Heights rising linearly along u: 8 texels 0, 1, …, 7 repeat, so between texel centres
+        // ∂H/∂u = 8 per uv unit. A triangle in the xy plane with u = x / 2 (world units): the
+        // world slope is 4 per unit, so n' = normalize((−4 d, 0, 1)) for distance d.
+        let texels: Vec<f32> = (0..8).map(|i| i as f32).collect();
+        let bump = BumpMap { width: 8, height: 1, texels: texels.into(), strength: 1.0, distance: 0.05 };
+        let (h, hu, hv) = bump.sample([0.3, 0.5]);
+        assert!((h - (0.3 * 8.0 - 0.5)).abs() < 1e-5 && (hu - 8.0).abs() < 1e-4 && hv.abs() < 1e-6, "{h} {hu} {hv}");
+        let p = [v3(0.0, 0.0, 0.0), v3(1.0, 0.0, 0.0), v3(0.0, 1.0, 0.0)];
+        let uvs = vec![[0.0, 0.0], [0.5, 0.0], [0.0, 0.5]];
+        let mk = |bump: BumpMap| Perturbation { bump: Some((bump, uvs.clone())), ..Default::default() };
+        let b = [0.4, 0.5, 0.1]; // u = 0.25: between texel centres 1 and 2
+        let n = mk(bump.clone()).apply([0, 1, 2], b, p, v3(0.0, 0.0, 1.0));
+        let want = v3(-4.0 * 0.05, 0.0, 1.0).normalize();
+        assert!((n - want).length() < 1e-5, "{n:?} vs {want:?}");
+        // Invert (negative distance) tilts the other way; strength 0 keeps the normal.
+        let inv = mk(BumpMap { distance: -0.05, ..bump.clone() }).apply([0, 1, 2], b, p, v3(0.0, 0.0, 1.0));
+        assert!((inv - v3(4.0 * 0.05, 0.0, 1.0).normalize()).length() < 1e-5, "{inv:?}");
+        let off = mk(BumpMap { strength: 0.0, ..bump }).apply([0, 1, 2], b, p, v3(0.0, 0.0, 1.0));
+        assert!((off - v3(0.0, 0.0, 1.0)).length() < 1e-6, "{off:?}");
     }
 }

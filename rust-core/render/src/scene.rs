@@ -7,7 +7,9 @@ use crate::distrib::Distribution1D;
 use crate::geom::{Aabb, Ray, V3};
 use crate::lights::Light;
 use crate::shapes::{Mesh, Quad, Sphere, SurfaceHit};
+use crate::texture::PaintTextures;
 use lacquer::Material;
+use std::sync::Arc;
 
 /// What a shape is made of: a material, or an area light's emitter, or both (an emitter
 /// with no material is black apart from its emission).
@@ -37,6 +39,8 @@ pub struct Hit {
     pub surf: SurfaceHit,
     /// True when the surface has texture coordinates (uv footprints are meaningful).
     pub has_uv: bool,
+    /// Image-texture coordinates ([`crate::texture`]): a mesh's `texture_uvs`, else `surf.uv`.
+    pub tex_uv: [f32; 2],
     /// Material index.
     pub material: Option<u32>,
     /// Index of the area light this surface belongs to.
@@ -50,6 +54,7 @@ pub struct Hit {
 #[derive(Default)]
 pub struct SceneBuilder {
     materials: Vec<Material>,
+    textures: Vec<Option<Arc<PaintTextures>>>,
     meshes: Vec<(Mesh, ShapeRef)>,
     spheres: Vec<(Sphere, ShapeRef)>,
     quads: Vec<(Quad, ShapeRef)>,
@@ -65,7 +70,14 @@ impl SceneBuilder {
 
     /// Adds a material and returns its index.
     pub fn material(&mut self, m: Material) -> u32 {
+        self.textured_material(m, None)
+    }
+
+    /// Adds a material whose parameters may be textured ([`crate::texture`]; `None`: plain)
+    /// and returns its index.
+    pub fn textured_material(&mut self, m: Material, textures: Option<Arc<PaintTextures>>) -> u32 {
         self.materials.push(m);
+        self.textures.push(textures);
         (self.materials.len() - 1) as u32
     }
 
@@ -165,6 +177,7 @@ impl SceneBuilder {
         Scene {
             camera,
             materials: self.materials,
+            textures: self.textures,
             meshes,
             mesh_refs,
             spheres,
@@ -187,6 +200,8 @@ pub struct Scene {
     pub camera: Camera,
     /// Materials, indexed by shapes.
     pub materials: Vec<Material>,
+    /// Textured parameters per material (`None`: the material is uniform).
+    pub textures: Vec<Option<Arc<PaintTextures>>>,
     meshes: Vec<Mesh>,
     mesh_refs: Vec<ShapeRef>,
     spheres: Vec<Sphere>,
@@ -267,15 +282,30 @@ impl Scene {
         });
         let (p, a, b) = best?;
         let t = r.tmax;
-        let (surf, shape, has_uv) = match self.prims[p as usize] {
+        let (surf, shape, has_uv, tex_uv) = match self.prims[p as usize] {
             Prim::Triangle { mesh, tri } => {
                 let m = &self.meshes[mesh as usize];
-                (m.surface(tri as usize, a, b), self.mesh_refs[mesh as usize], !m.uvs.is_empty())
+                let surf = m.surface(tri as usize, a, b);
+                (surf, self.mesh_refs[mesh as usize], !m.uvs.is_empty(), m.texture_uv(tri as usize, a, b))
             }
-            Prim::Sphere(s) => (self.spheres[s as usize].surface(ray.at(t)), self.sphere_refs[s as usize], true),
-            Prim::Quad(q) => (self.quads[q as usize].surface(a, b), self.quad_refs[q as usize], true),
+            Prim::Sphere(s) => {
+                let surf = self.spheres[s as usize].surface(ray.at(t));
+                (surf, self.sphere_refs[s as usize], true, surf.uv)
+            }
+            Prim::Quad(q) => {
+                let surf = self.quads[q as usize].surface(a, b);
+                (surf, self.quad_refs[q as usize], true, surf.uv)
+            }
         };
-        Some(Hit { t, surf, has_uv, material: shape.material, light: shape.light, pass_through: shape.pass_through })
+        Some(Hit {
+            t,
+            surf,
+            has_uv,
+            tex_uv,
+            material: shape.material,
+            light: shape.light,
+            pass_through: shape.pass_through,
+        })
     }
 
     fn passes_through(&self, p: u32) -> bool {

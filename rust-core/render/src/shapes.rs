@@ -38,9 +38,26 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Shading-normal perturbations (normal map, orange peel), if any.
     pub perturb: Option<Box<Perturbation>>,
+    /// Vertex coordinates of image textures (a host's UV map; empty: `uvs`), see
+    /// [`crate::texture`].
+    pub texture_uvs: Vec<[f32; 2]>,
 }
 
 impl Mesh {
+    /// The image-texture coordinates at barycentrics `(b1, b2)` of triangle `i`: `texture_uvs`
+    /// when the mesh has them, else `uvs` (zero without either).
+    #[must_use]
+    pub fn texture_uv(&self, i: usize, b1: f32, b2: f32) -> [f32; 2] {
+        let uvs = if self.texture_uvs.is_empty() { &self.uvs } else { &self.texture_uvs };
+        if uvs.is_empty() {
+            return [0.0; 2];
+        }
+        let [ia, ib, ic] = self.triangles[i].map(|k| k as usize);
+        let b0 = 1.0 - b1 - b2;
+        let (ta, tb, tc) = (uvs[ia], uvs[ib], uvs[ic]);
+        [ta[0] * b0 + tb[0] * b1 + tc[0] * b2, ta[1] * b0 + tb[1] * b1 + tc[1] * b2]
+    }
+
     /// Bounding box of triangle `i`.
     #[must_use]
     pub fn triangle_bounds(&self, i: usize) -> Aabb {

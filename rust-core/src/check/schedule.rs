@@ -368,7 +368,7 @@ mod tests {
         assert_eq!(Profile::by_name("ci").unwrap().with_seed(7).config_for("stam").seed, 7);
     }
 
-    /// What lets CI skip the quick-configuration checks of rust-core/tests/all_models.rs: for
+    /// What lets CI skip the quick-configuration checks of rust-core/tests/integration/all_models.rs: for
     /// every model, the `ci` profile checks the same materials (defaults, check sets, and the
     /// quick configuration's random parameter sets, drawn from the same seed) with at least as
     /// many samples, pairs and furnace directions, on the same seed and χ² directions.

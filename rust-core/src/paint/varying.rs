@@ -6,15 +6,18 @@
 //! `f_b = ρ(1−c−c_p)(1−m)·f_pig + ρ c_p·f_pig,pearl + (1−c−c_p)m·[ρ f_metal,F0=1 + (1−ρ) f_metal,F0=0]
 //! + c·f_flake,unit + f_pearl-flakes` (Schlick is linear in `F0`). The layer tables `A1(μ)` and
 //! `U(μ) − A1(μ)` of [`super::coated_paint`] and the basecoat's mean albedo `ρ̄` are integrals
-//! of `f_b`, hence the same linear combinations of per-component tables ([`VaryingPaint`] holds
-//! one per component, estimated with that component's own sampler). Per element only weights
+//! of `f_b`, hence the same linear combinations of per-component tables (estimated with each
+//! component's own sampler). The weights are bilinear in `ρ` and `c`, so [`VaryingPaint`] keeps
+//! the basis tables `T₁ + ρ T_ρ + c T_c + ρc T_ρc`, with the parameters a call does not vary
+//! folded in (a textured colour alone reads two tables per channel, the untextured paint one).
+//! Per element only weights
 //! are formed; the bounce factor `τ̄²ρ̄e / (1 − τ̄²ρ̄(1 − e))` and the multiple-scatter lobe's
 //! normalisation are closed forms of them. The basecoat's lobe-selection weights are closed
 //! forms too, so `pdf` and `sample` are the per-element material's.
 //!
 //! `coat_roughness` changes the coat lobe (evaluated per element with its own α) and,
 //! nonlinearly, the coat's transmittance `1 − E_top(μ)` and the escape probabilities inside
-//! the tables: those are tabulated over [`ALPHA_NODES`] nodes uniform in `√α` on
+//! the tables: those are tabulated over [`ALPHA_NODES`] nodes uniform in `ln α` on
 //! `[0.001, 0.5]` and interpolated linearly (the interpolation error is measured in the tests
 //! and `docs/speed.md`). A per-element roughness needs a rough coat: elements must lie in
 //! `[0.001, 0.5]` (a smooth coat's delta lobe cannot blend into a rough one).
@@ -81,7 +84,7 @@ impl<E> PaintTexture<'_, E> {
 }
 
 /// Number of `α` nodes of the tables when `coat_roughness` varies.
-pub const ALPHA_NODES: usize = 16;
+pub const ALPHA_NODES: usize = 32;
 /// Smallest per-element coat roughness.
 pub const ALPHA_MIN: f64 = 0.001;
 /// Largest per-element coat roughness.
@@ -92,6 +95,15 @@ const NODES: usize = 48;
 const E_NODES: usize = 64;
 /// Basecoat samples behind each table node (as the material's).
 const SAMPLES: usize = 2048;
+
+/// The coat α of grid node `j` (`j < ALPHA_NODES`): nodes uniform in `ln α` on
+/// `[ALPHA_MIN, ALPHA_MAX]` (the tables' interpolation error goes as the square of the node
+/// spacing in `ln α` over the whole range; docs/speed.md).
+#[must_use]
+pub fn alpha_node(j: usize) -> f64 {
+    let (l0, l1) = (ALPHA_MIN.ln(), ALPHA_MAX.ln());
+    (l0 + (l1 - l0) * j as f64 / (ALPHA_NODES - 1) as f64).exp().clamp(ALPHA_MIN, ALPHA_MAX)
+}
 
 /// A flat table read per lane: f64 values for the reference path, f32 (padded) for SIMD.
 #[derive(Clone, Debug)]
@@ -108,7 +120,8 @@ impl Flat {
         Self { v64, v32 }
     }
 
-    /// Entry `idx` per lane (integral indices in range).
+    /// Entry `idx` per lane (integral indices in range). Tables of up to 64 entries are
+    /// register permutes with AVX-512 ([`Lanes::lookup_f32_`]), larger ones gathers.
     #[inline(always)]
     fn get<L: Lanes>(&self, idx: L) -> L {
         if L::WIDTH == 1 {
@@ -118,16 +131,28 @@ impl Flat {
         L::lookup_f32_(&self.v32, idx)
     }
 
-    /// Linear interpolation over `nodes` entries starting at `base`, at `μ ∈ [0, 1]`.
+    /// Linear interpolation between entries `i` and `i + 1` with weight `t`.
     #[inline(always)]
-    fn at_mu<L: Lanes>(&self, nodes: usize, base: L, mu: L) -> L {
-        let last = (nodes - 1) as f64;
-        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last);
-        let i = lanes::min(x.floor_(), L::c(last - 1.0));
-        let t = x - i;
-        let (a, b) = (self.get(base + i), self.get(base + i + L::c(1.0)));
+    fn lerp<L: Lanes>(&self, i: L, t: L) -> L {
+        let (a, b) = (self.get(i), self.get(i + L::c(1.0)));
         a + (b - a) * t
     }
+}
+
+/// Where `μ` falls on a table of `n` evenly spaced nodes: the lower node and the weight of the
+/// upper one (computed once per direction, shared by every table read at it).
+#[derive(Clone, Copy, Debug)]
+struct MuAt<L> {
+    i: L,
+    t: L,
+}
+
+#[inline(always)]
+fn mu_at<L: Lanes>(mu: L, nodes: usize) -> MuAt<L> {
+    let last = (nodes - 1) as f64;
+    let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last);
+    let i = lanes::min(x.floor_(), L::c(last - 1.0));
+    MuAt { i, t: x - i }
 }
 
 /// One basecoat component: its weight per element is a closed form of the parameters.
@@ -147,6 +172,84 @@ enum Kind {
     Pearl,
 }
 
+/// The per-element factor of a basis table: every component weight is bilinear in the
+/// pigment colour `ρ` (per channel) and the flake coverage `c`, so each layer table is
+/// `T₁ + ρ T_ρ + c T_c + ρc T_ρc` (the uncovered fraction `1 − c − c_p` unclamped: valid
+/// elements have `c + c_p ≤ 1 + 1e-6`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Coef {
+    One,
+    Rho,
+    C,
+    RhoC,
+}
+
+impl Coef {
+    const ALL: [Coef; 4] = [Coef::One, Coef::Rho, Coef::C, Coef::RhoC];
+
+    /// Whether the factor holds `ρ` and `c`.
+    fn factors(self) -> (bool, bool) {
+        match self {
+            Coef::One => (false, false),
+            Coef::Rho => (true, false),
+            Coef::C => (false, true),
+            Coef::RhoC => (true, true),
+        }
+    }
+
+    /// The factor of component `kind` on this basis table (`u0 = 1 − c_p`, `m` metallic).
+    fn of(self, kind: Kind, u0: f64, m: f64) -> f64 {
+        match (kind, self) {
+            (Kind::Pigment, Coef::Rho) => u0 * (1.0 - m),
+            (Kind::Pigment, Coef::RhoC) => -(1.0 - m),
+            (Kind::PigmentPearl, Coef::Rho) => 1.0 - u0,
+            (Kind::MetalOne, Coef::Rho) => u0 * m,
+            (Kind::MetalOne, Coef::RhoC) => -m,
+            (Kind::MetalZero, Coef::One) => u0 * m,
+            (Kind::MetalZero, Coef::Rho) => -u0 * m,
+            (Kind::MetalZero, Coef::C) => -m,
+            (Kind::MetalZero, Coef::RhoC) => m,
+            (Kind::Flakes, Coef::C) => 1.0,
+            (Kind::Pearl, Coef::One) => 1.0,
+            _ => 0.0,
+        }
+    }
+}
+
+/// Which of `base_color` and `flake_density` vary per element: the parameters that do not
+/// are folded into the tables, so a call pays only for what its texture varies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Vary {
+    /// `base_color` varies.
+    pub rho: bool,
+    /// `flake_density` varies.
+    pub c: bool,
+}
+
+impl Vary {
+    /// Both vary (the most general tables; the f64 helpers use them).
+    pub(crate) const ALL: Vary = Vary { rho: true, c: true };
+
+    fn index(self) -> usize {
+        usize::from(self.rho) + 2 * usize::from(self.c)
+    }
+}
+
+/// The layer tables for one [`Vary`]: a few basis tables with per-element factors.
+#[derive(Clone, Debug)]
+struct Folded {
+    /// The factor of each basis table.
+    coefs: Vec<Coef>,
+    /// `A1` per (basis, channel): `ALPHA × NODES` values (α node major).
+    a1: Vec<Flat>,
+    /// `U − A1` per (basis, channel).
+    r: Vec<Flat>,
+    /// Cosine average of `U − A1` per (basis, channel): one value per α node.
+    r_avg: Vec<Flat>,
+    /// Basecoat mean albedo per (basis, channel).
+    rho_bar: Vec<[f64; 3]>,
+}
+
 /// Where an element's `α` falls on the node grid: the lower node (as a float) and the weight
 /// of the upper one.
 #[derive(Clone, Copy, Debug)]
@@ -158,14 +261,16 @@ struct AlphaAt<L> {
 /// An element's parameters and the closed forms derived from them, per lane.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Element<L: Lanes> {
+    /// Index of the folded tables ([`Vary::index`]).
+    cfg: usize,
     rho: [L; 3],
     /// Metallic flake coverage `c` (0..1).
     c: L,
     /// Coat GGX α (the material's when it does not vary).
     alpha: L,
     at: AlphaAt<L>,
-    /// Component weights per channel.
-    w: [[L; 3]; 6],
+    /// Factor of each basis table per channel.
+    cw: [[L; 3]; 4],
     bounce: [L; 3],
     norm: [L; 3],
     /// Basecoat lobe-selection weights: pigment, metal, flakes.
@@ -181,23 +286,16 @@ pub(crate) struct Element<L: Lanes> {
 pub struct VaryingPaint {
     /// The material's coat (its α-independent parts, and its lobe when α does not vary).
     coat: Coat,
-    /// `√α` of the nodes (one node, the material's α, when α does not vary).
-    alpha_sqrt: Vec<f64>,
+    /// `ln α` of the nodes (one node, the material's α, when α does not vary).
+    alpha_ln: Vec<f64>,
     /// `E_top(μ)` per α node (`E_NODES` each); unused when α does not vary.
     e_top: Flat,
-    kinds: Vec<Kind>,
-    /// `A1` per (α node, component, channel), `NODES` values each.
-    a1: Flat,
-    /// `U − A1` per (α node, component, channel).
-    r: Flat,
-    /// Cosine average of `U − A1` per (α node, component, channel).
-    r_avg: Flat,
+    /// The layer tables per [`Vary::index`].
+    folded: Vec<Folded>,
     /// Escape probability `e` per α node.
     escape: Flat,
     /// Mean crossing transmittance `τ̄` per channel.
     tau: [f64; 3],
-    /// Basecoat mean albedo per (component, channel).
-    rho_bar: Vec<[f64; 3]>,
     /// Pearl coverage `c_p`.
     pearl_c: f64,
     /// Metallic weight `m` of the base.
@@ -216,31 +314,20 @@ pub struct VaryingPaint {
     material_alpha: f64,
 }
 
-/// Flat index of a (node, component, channel) table.
-#[inline(always)]
-fn slot(node: usize, k: usize, c: usize, kinds: usize) -> usize {
-    (node * kinds + k) * 3 + c
-}
-
 impl VaryingPaint {
     /// Builds the component tables of `paint` (with its parameters `p`); with `vary_alpha` the
-    /// tables span the α grid, otherwise the material's own coat only.
+    /// tables span the α grid, otherwise the material's own coat only. The coats and the
+    /// table nodes are computed on the rayon pool.
     #[must_use]
     pub fn new(paint: &CoatedPaint, p: &Params, vary_alpha: bool) -> Self {
+        use rayon::prelude::*;
         let coat = paint.coat().clone();
         let eta = coat.ior;
-        let alphas: Vec<f64> = if vary_alpha {
-            let (s0, s1) = (ALPHA_MIN.sqrt(), ALPHA_MAX.sqrt());
-            (0..ALPHA_NODES)
-                .map(|j| s0 + (s1 - s0) * j as f64 / (ALPHA_NODES - 1) as f64)
-                .map(|s| (s * s).clamp(ALPHA_MIN, ALPHA_MAX))
-                .collect()
-        } else {
-            vec![coat.roughness]
-        };
+        let alphas: Vec<f64> =
+            if vary_alpha { (0..ALPHA_NODES).map(alpha_node).collect() } else { vec![coat.roughness] };
         let coats: Vec<Coat> = if vary_alpha {
             let thickness_um = coat.thickness_mm * 1e3;
-            alphas.iter().map(|&a| Coat::new(eta, a, thickness_um, coat.absorption_per_mm)).collect()
+            alphas.par_iter().map(|&a| Coat::new(eta, a, thickness_um, coat.absorption_per_mm)).collect()
         } else {
             vec![coat.clone()]
         };
@@ -248,6 +335,7 @@ impl VaryingPaint {
         let pearl_c = p.scalar("pearl_density") / 100.0;
         let metallic = p.scalar("base_metallic");
         let material_c = p.scalar("flake_density") / 100.0;
+        let material_rho = p.color("base_color");
         let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
         let metal_ior = fresnel::metal(p.choice("flake_material")).expect("choice list holds known metals");
         let pearl_table = base.flakes.as_ref().and_then(|f| f.pearl_reflectance.clone());
@@ -275,29 +363,29 @@ impl VaryingPaint {
         if pearl_c > 0.0 {
             comps.push((Kind::Pearl, Basecoat::new([0.0; 3], 0.0, 0.0, None, None, Some(unit_flakes(0.0, pearl_c)))));
         }
-        let kinds: Vec<Kind> = comps.iter().map(|(k, _)| *k).collect();
-        let nk = kinds.len();
         let na = coats.len();
         let (escape, tau) = escape_and_tau(&coats);
-        let mut a1 = vec![0.0; na * nk * 3 * NODES];
-        let mut r = vec![0.0; na * nk * 3 * NODES];
-        let mut r_avg = vec![0.0; na * nk * 3];
-        let mut rho_bar = Vec::with_capacity(nk);
-        for (k, (_, b)) in comps.iter().enumerate() {
-            let (tables, rb) = component_tables(&coats, b);
-            rho_bar.push(rb);
-            for (j, (ta1, tr)) in tables.iter().enumerate() {
-                let avg = tr.cosine_average();
-                for c in 0..3 {
-                    let s = slot(j, k, c, nk);
-                    r_avg[s] = avg[c];
-                    for (m, (x, y)) in ta1.values().iter().zip(tr.values()).enumerate() {
-                        a1[s * NODES + m] = x[c];
-                        r[s * NODES + m] = y[c];
-                    }
+        // Per component: A1 and U − A1 per (α node, channel) as NODES values, their cosine
+        // averages, and ρ̄.
+        let per_comp: Vec<ComponentTables> = comps.iter().map(|(_, b)| component_tables(&coats, b)).collect();
+        // The basis tables T_b = Σ_k coef_b(k) T_k.
+        let u0 = 1.0 - pearl_c;
+        let basis: Vec<ComponentTables> = Coef::ALL
+            .iter()
+            .map(|&b| {
+                let mut out = ComponentTables::zero(na);
+                for ((kind, _), t) in comps.iter().zip(&per_comp) {
+                    out.add(b.of(*kind, u0, metallic), t);
                 }
-            }
-        }
+                out
+            })
+            .collect();
+        let folded = (0..4)
+            .map(|idx| {
+                let vary = Vary { rho: idx & 1 != 0, c: idx & 2 != 0 };
+                fold(&basis, vary, material_rho, material_c)
+            })
+            .collect();
         let mut e_top = vec![0.0; na * E_NODES];
         for (j, cj) in coats.iter().enumerate() {
             for m in 0..E_NODES {
@@ -310,16 +398,12 @@ impl VaryingPaint {
         let mean = |c: [f64; 3]| (c[0] + c[1] + c[2]) / 3.0;
         let pearl_t_sel = pearl_transmission.as_ref().map_or(0.0, |t| mean(t.eval::<f64>(1.0)).powi(2));
         Self {
-            alpha_sqrt: alphas.iter().map(|a| a.sqrt()).collect(),
+            alpha_ln: alphas.iter().map(|a| a.ln()).collect(),
             coat,
             e_top: Flat::new(e_top),
-            kinds,
-            a1: Flat::new(a1),
-            r: Flat::new(r),
-            r_avg: Flat::new(r_avg),
+            folded,
             escape: Flat::new(escape),
             tau,
-            rho_bar,
             pearl_c,
             metallic,
             metal: (metallic > 0.0).then_some(MetalBase { alpha: metal_alpha, f0: [1.0; 3], weight: 1.0 }),
@@ -327,7 +411,7 @@ impl VaryingPaint {
             pearl_transmission,
             flake_nr,
             pearl_t_sel,
-            material_rho: p.color("base_color"),
+            material_rho,
             material_c,
             material_alpha: paint.coat().roughness,
         }
@@ -336,7 +420,7 @@ impl VaryingPaint {
     /// True when the coat roughness varies per element (the tables span the α grid).
     #[must_use]
     pub fn varies_alpha(&self) -> bool {
-        self.alpha_sqrt.len() > 1
+        self.alpha_ln.len() > 1
     }
 
     /// The material's values `(base_color, flake coverage 0..1, coat α)`, used for the
@@ -350,18 +434,20 @@ impl VaryingPaint {
     /// `CoatedPaint::layer_albedos`).
     #[must_use]
     pub fn layer_albedos(&self, rho: [f64; 3], coverage: f64, alpha: f64, mu: f64) -> ([f64; 3], [f64; 3]) {
-        let e = self.element::<f64>(rho, coverage, alpha);
-        (self.single(&e, mu), self.multiple(&e, mu))
+        let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
+        let m = mu_at(mu, NODES);
+        (self.single(&e, &m), self.multiple(&e, &m))
     }
 
     /// The three terms of `f` for one element (f64; tests): top reflection, single-scatter
     /// layer, multiple scatter (as `CoatedPaint::eval_terms`).
     #[must_use]
     pub fn eval_terms(&self, rho: [f64; 3], coverage: f64, alpha: f64, wi: Vec3<f64>, wo: Vec3<f64>) -> [Rgb<f64>; 3] {
-        let e = self.element::<f64>(rho, coverage, alpha);
-        let (a, b) = (self.multiple(&e, wi.z), self.multiple(&e, wo.z));
+        let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
+        let (a, b) = (self.multiple(&e, &mu_at(wi.z, NODES)), self.multiple(&e, &mu_at(wo.z, NODES)));
         let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
-        [Rgb::splat(self.top_eval(&e, wi, wo)), self.layer_term(&e, wi, wo), m]
+        let (ti, to) = (self.transmittance(&e, wi.z), self.transmittance(&e, wo.z));
+        [Rgb::splat(self.top_eval(&e, wi, wo)), self.layer_term(&e, wi, wo, ti, to), m]
     }
 
     /// The density of one element for given lobe-selection weights `s` (f64; tests: with a
@@ -376,15 +462,28 @@ impl VaryingPaint {
         wo: Vec3<f64>,
         s: [f64; 3],
     ) -> f64 {
-        let e = self.element::<f64>(rho, coverage, alpha);
+        let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
         self.pdf_with(&e, wi, wo, s)
+    }
+
+    /// `f` and pdf of one element (f64; tests).
+    #[must_use]
+    pub fn eval_pdf_one(
+        &self,
+        rho: [f64; 3],
+        coverage: f64,
+        alpha: f64,
+        wi: Vec3<f64>,
+        wo: Vec3<f64>,
+    ) -> (Rgb<f64>, f64) {
+        let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
+        self.eval_pdf_lanes(&e, wi, wo)
     }
 
     /// Per lane: whether the raw parameters are valid (`rho`, flake density in %, α), for the
     /// ones given. Invalid lanes must not be evaluated (the caller substitutes the defaults).
     #[inline(always)]
     pub(crate) fn valid<L: Lanes>(&self, rho: Option<[L; 3]>, density: Option<L>, alpha: Option<L>) -> L::Mask {
-        let inside = |x: L, lo: f64, hi: f64| lanes::ge(x, L::c(lo)) & lanes::le(x, L::c(hi));
         let mut ok = L::Mask::splat(true);
         if let Some([r, g, b]) = rho {
             ok = ok & inside(r, 0.0, 1.0) & inside(g, 0.0, 1.0) & inside(b, 0.0, 1.0);
@@ -398,16 +497,18 @@ impl VaryingPaint {
         ok
     }
 
-    /// The closed forms of one element (valid parameters: `rho`, coverage `c` in 0..1, α).
+    /// The closed forms of one element (valid parameters: `rho`, coverage `c` in 0..1, α);
+    /// `vary` names the parameters that may differ from the material's (the others must be
+    /// the material's values: they are folded into the tables).
     #[inline(always)]
-    pub(crate) fn element<L: Lanes>(&self, rho: [L; 3], c: L, alpha: L) -> Element<L> {
+    pub(crate) fn element<L: Lanes>(&self, rho: [L; 3], c: L, alpha: L, vary: Vary) -> Element<L> {
         let zero = L::c(0.0);
         let one = L::c(1.0);
         let at = if self.varies_alpha() {
-            let n = self.alpha_sqrt.len();
-            let (s0, s1) = (self.alpha_sqrt[0], self.alpha_sqrt[n - 1]);
+            let n = self.alpha_ln.len();
+            let (s0, s1) = (self.alpha_ln[0], self.alpha_ln[n - 1]);
             let x = lanes::clamp(
-                (lanes::sqrt(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
+                (lanes::ln(alpha) - L::c(s0)) * L::c((n - 1) as f64 / (s1 - s0)),
                 zero,
                 L::c((n - 1) as f64),
             );
@@ -416,35 +517,31 @@ impl VaryingPaint {
         } else {
             AlphaAt { node: zero, t: zero }
         };
+        let cfg = vary.index();
+        let folded = &self.folded[cfg];
+        let mut cw = [[zero; 3]; 4];
+        for (w, coef) in cw.iter_mut().zip(&folded.coefs) {
+            *w = match coef {
+                Coef::One => [one; 3],
+                Coef::Rho => rho,
+                Coef::C => [c; 3],
+                Coef::RhoC => rho.map(|r| r * c),
+            };
+        }
         let cp = L::c(self.pearl_c);
         let m = L::c(self.metallic);
         let uncovered = lanes::max(one - c - cp, zero);
         let pigment_weight = uncovered * (one - m);
         let metal_weight = uncovered * m;
-        let mut w = [[zero; 3]; 6];
-        for (k, kind) in self.kinds.iter().enumerate() {
-            w[k] = match kind {
-                Kind::Pigment => rho.map(|r| r * pigment_weight),
-                Kind::PigmentPearl => rho.map(|r| r * cp),
-                Kind::MetalOne => rho.map(|r| r * metal_weight),
-                Kind::MetalZero => rho.map(|r| (one - r) * metal_weight),
-                Kind::Flakes => [c; 3],
-                Kind::Pearl => [one; 3],
-            };
-        }
         // Bounce factor and the multiple-scatter lobe's normalisation, per channel.
-        let escape = self.alpha_lerp(&at, |node| self.escape.get(node));
-        let nk = self.kinds.len();
+        let escape = self.alpha_lerp1(&self.escape, &at);
         let mut bounce = [zero; 3];
         let mut norm = [zero; 3];
         for ch in 0..3 {
             let (mut rb, mut ravg) = (zero, zero);
-            for (k, wk) in w.iter().enumerate().take(nk) {
-                rb += wk[ch] * L::c(self.rho_bar[k][ch]);
-                ravg += wk[ch]
-                    * self.alpha_lerp(&at, |node| {
-                        self.r_avg.get(node * L::c((nk * 3) as f64) + L::c((k * 3 + ch) as f64))
-                    });
+            for (j, w) in cw.iter().enumerate().take(folded.coefs.len()) {
+                rb += w[ch] * L::c(folded.rho_bar[j][ch]);
+                ravg += w[ch] * self.alpha_lerp1(&folded.r_avg[j * 3 + ch], &at);
             }
             let r = L::c(self.tau[ch] * self.tau[ch]) * rb;
             let denom = one - r * (one - escape);
@@ -468,31 +565,40 @@ impl VaryingPaint {
             if self.metal.is_some() { lanes::max(w_metal, floor) } else { zero },
             keep(flakes_present, lanes::max(w_flakes, floor)),
         ];
-        Element { rho, c, alpha, at, w, bounce, norm, base_sel, pigment_weight, metal_weight }
+        Element { cfg, rho, c, alpha, at, cw, bounce, norm, base_sel, pigment_weight, metal_weight }
     }
 
-    /// `g(node)` interpolated between the element's two α nodes.
+    /// A per-α-node value (`flat` holds one per node) at the element's α.
     #[inline(always)]
-    fn alpha_lerp<L: Lanes>(&self, at: &AlphaAt<L>, g: impl Fn(L) -> L) -> L {
-        let a = g(at.node);
+    fn alpha_lerp1<L: Lanes>(&self, flat: &Flat, at: &AlphaAt<L>) -> L {
         if !self.varies_alpha() {
-            return a;
+            return L::c(flat.v64[0]);
         }
-        let b = g(at.node + L::c(1.0));
+        flat.lerp(at.node, at.t)
+    }
+
+    /// A table of `nodes` μ nodes per α node at the element's α and `μ` (bilinear).
+    #[inline(always)]
+    fn lookup<L: Lanes>(&self, flat: &Flat, nodes: usize, at: &AlphaAt<L>, m: &MuAt<L>) -> L {
+        if !self.varies_alpha() {
+            return flat.lerp(m.i, m.t);
+        }
+        let row = at.node * L::c(nodes as f64) + m.i;
+        let a = flat.lerp(row, m.t);
+        let b = flat.lerp(row + L::c(nodes as f64), m.t);
         a + (b - a) * at.t
     }
 
-    /// A combined layer table (`A1` or `U − A1`) per channel at `μ` for the element.
+    /// A combined layer table (`A1` or `U − A1`, chosen by `pick`) per channel at `μ`.
     #[inline(always)]
-    fn table<L: Lanes>(&self, flat: &Flat, e: &Element<L>, mu: L) -> [L; 3] {
-        let nk = self.kinds.len();
+    fn table<L: Lanes>(&self, single: bool, e: &Element<L>, m: &MuAt<L>) -> [L; 3] {
+        let folded = &self.folded[e.cfg];
+        let tabs = if single { &folded.a1 } else { &folded.r };
         let mut out = [L::c(0.0); 3];
         for (ch, o) in out.iter_mut().enumerate() {
-            for k in 0..nk {
-                let off = L::c(((k * 3 + ch) * NODES) as f64);
-                let stride = L::c((nk * 3 * NODES) as f64);
-                let v = self.alpha_lerp(&e.at, |node| flat.at_mu(NODES, node * stride + off, mu));
-                *o += e.w[k][ch] * v;
+            for (j, w) in e.cw.iter().enumerate().take(folded.coefs.len()) {
+                let v = self.lookup(&tabs[j * 3 + ch], NODES, &e.at, m);
+                *o = if folded.coefs[j] == Coef::One { *o + v } else { *o + w[ch] * v };
             }
         }
         out
@@ -500,14 +606,14 @@ impl VaryingPaint {
 
     /// `A1(μ)` of the element.
     #[inline(always)]
-    fn single<L: Lanes>(&self, e: &Element<L>, mu: L) -> [L; 3] {
-        self.table(&self.a1, e, mu)
+    fn single<L: Lanes>(&self, e: &Element<L>, m: &MuAt<L>) -> [L; 3] {
+        self.table(true, e, m)
     }
 
     /// `M(μ) = bounce · (U − A1)(μ)` of the element.
     #[inline(always)]
-    fn multiple<L: Lanes>(&self, e: &Element<L>, mu: L) -> [L; 3] {
-        let r = self.table(&self.r, e, mu);
+    fn multiple<L: Lanes>(&self, e: &Element<L>, m: &MuAt<L>) -> [L; 3] {
+        let r = self.table(false, e, m);
         [0, 1, 2].map(|c| lanes::max(e.bounce[c] * r[c], L::c(0.0)))
     }
 
@@ -517,7 +623,7 @@ impl VaryingPaint {
         if !self.varies_alpha() || !self.coat.has_interface() {
             return self.coat.reflectance(mu);
         }
-        self.alpha_lerp(&e.at, |node| self.e_top.at_mu(E_NODES, node * L::c(E_NODES as f64), mu))
+        self.lookup(&self.e_top, E_NODES, &e.at, &mu_at(mu, E_NODES))
     }
 
     #[inline(always)]
@@ -568,7 +674,8 @@ impl VaryingPaint {
         !self.varies_alpha() && self.coat.is_smooth()
     }
 
-    /// The basecoat BRDF of the element (directions inside the coat).
+    /// The basecoat BRDF of the element (directions inside the coat). The flake lobe is
+    /// skipped when no lane has flakes.
     #[inline(always)]
     fn base_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let inv_pi = L::c(std::f64::consts::FRAC_1_PI);
@@ -594,7 +701,9 @@ impl VaryingPaint {
             f += Rgb::select(defined & lanes::gt(g, L::c(0.0)), fm, Rgb::zero());
         }
         if let Some(fl) = &self.flakes {
-            f += fl.eval_scaled(wi, wo, e.c, L::c(1.0));
+            if self.pearl_c > 0.0 || lanes::gt(e.c, L::c(0.0)).any() {
+                f += fl.eval_scaled(wi, wo, e.c, L::c(1.0));
+            }
         }
         f
     }
@@ -609,7 +718,10 @@ impl VaryingPaint {
             p += b * m.pdf(wi, wo);
         }
         if let Some(f) = &self.flakes {
-            p += keep(lanes::gt(c, L::c(0.0)), c * f.pdf(wi, wo));
+            let on = lanes::gt(c, L::c(0.0));
+            if on.any() {
+                p += keep(on, c * f.pdf(wi, wo));
+            }
         }
         keep(lanes::gt(total, L::c(0.0)), p / total)
     }
@@ -632,10 +744,10 @@ impl VaryingPaint {
         (wi, pick.valid)
     }
 
-    /// The single-scatter layer term of the element.
+    /// The single-scatter layer term of the element, for the coat transmittances `ti`, `to`
+    /// at `wi`, `wo`.
     #[inline(always)]
-    fn layer_term<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        let (ti, to) = (self.transmittance(e, wi.z), self.transmittance(e, wo.z));
+    fn layer_term<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, ti: L, to: L) -> Rgb<L> {
         let crosses = lanes::gt(ti, L::c(0.0)) & lanes::gt(to, L::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / L::c(self.coat.ior * self.coat.ior);
@@ -647,22 +759,45 @@ impl VaryingPaint {
         Rgb::select(crosses, f, Rgb::zero())
     }
 
+    /// What `f` and the lobe selection share at `wo`: `M(μo)` and the top reflectance.
+    #[inline(always)]
+    fn at_wo<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>) -> AtWo<L> {
+        let m = mu_at(wo.z, NODES);
+        AtWo { m, multiple: self.multiple(e, &m), reflectance: self.reflectance(e, wo.z) }
+    }
+
+    /// `f_r` of the element given its values at `wo`.
+    #[inline(always)]
+    fn eval_with<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, o: &AtWo<L>) -> Rgb<L> {
+        let top = self.top_eval(e, wi, wo);
+        let (a, b) = (self.multiple(e, &mu_at(wi.z, NODES)), o.multiple);
+        let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
+        let (ti, to) = (self.transmittance(e, wi.z), lanes::max(L::c(1.0) - o.reflectance, L::c(0.0)));
+        Rgb::splat(top) + self.layer_term(e, wi, wo, ti, to) + m
+    }
+
     /// `f_r` of the element (both directions above the surface).
     #[inline(always)]
     pub(crate) fn eval_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        let top = self.top_eval(e, wi, wo);
-        let (a, b) = (self.multiple(e, wi.z), self.multiple(e, wo.z));
-        let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
-        Rgb::splat(top) + self.layer_term(e, wi, wo) + m
+        self.eval_with(e, wi, wo, &self.at_wo(e, wo))
+    }
+
+    /// `f_r` and the density of the element (both directions above the surface), sharing the
+    /// tables read at `wo`.
+    #[inline(always)]
+    pub(crate) fn eval_pdf_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
+        let o = self.at_wo(e, wo);
+        let f = self.eval_with(e, wi, wo, &o);
+        (f, self.pdf_with(e, wi, wo, self.selection(e, &o)))
     }
 
     /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
     #[inline(always)]
-    fn selection<L: Lanes>(&self, e: &Element<L>, mu_o: L) -> [L; 3] {
-        let [a, b, c] = self.single(e, mu_o);
-        let [d, f, g] = self.multiple(e, mu_o);
+    fn selection<L: Lanes>(&self, e: &Element<L>, o: &AtWo<L>) -> [L; 3] {
+        let [a, b, c] = self.single(e, &o.m);
+        let [d, f, g] = o.multiple;
         let third = L::c(3.0);
-        [self.reflectance(e, mu_o), (a + b + c) / third, (d + f + g) / third]
+        [o.reflectance, (a + b + c) / third, (d + f + g) / third]
     }
 
     #[inline(always)]
@@ -679,13 +814,15 @@ impl VaryingPaint {
     /// Sampling density of the element (both directions above the surface).
     #[inline(always)]
     pub(crate) fn pdf_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
-        self.pdf_with(e, wi, wo, self.selection(e, wo.z))
+        let o = self.at_wo(e, wo);
+        self.pdf_with(e, wi, wo, self.selection(e, &o))
     }
 
     /// A sample of the element (`wo` above the surface), as `CoatedPaint::sample_lanes`.
     #[inline(always)]
     pub(crate) fn sample_lanes<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let selection = self.selection(e, wo.z);
+        let o = self.at_wo(e, wo);
+        let selection = self.selection(e, &o);
         let pick = pick3(selection, u[0]);
         let [top, layer, multiple] = pick.lobe;
         let normal = Vec3::from_f64(0.0, 0.0, 1.0);
@@ -701,7 +838,7 @@ impl VaryingPaint {
         let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
         let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
         let valid = pick.valid & (top | (layer & layer_ok) | multiple);
-        let f = self.eval_lanes(e, wi, wo);
+        let f = self.eval_with(e, wi, wo, &o);
         let pdf = self.pdf_with(e, wi, wo, selection);
         let s = LaneSample::from_eval(wi, f, pdf, valid & lanes::gt(wi.z, L::c(0.0)));
         if !self.smooth() {
@@ -717,6 +854,120 @@ impl VaryingPaint {
             valid: (delta & valid & lanes::gt(p, L::c(0.0))) | (!delta & s.valid),
             delta,
         }
+    }
+}
+
+/// `lo ≤ x ≤ hi` per lane (false for NaN).
+#[inline(always)]
+fn inside<L: Lanes>(x: L, lo: f64, hi: f64) -> L::Mask {
+    lanes::ge(x, L::c(lo)) & lanes::le(x, L::c(hi))
+}
+
+/// The element's values at `wo`, shared by `f` and the lobe selection.
+#[derive(Clone, Copy, Debug)]
+struct AtWo<L> {
+    m: MuAt<L>,
+    multiple: [L; 3],
+    reflectance: L,
+}
+
+/// The layer tables of one component (or one basis combination of components), f64.
+#[derive(Clone, Debug)]
+struct ComponentTables {
+    /// `A1` per channel: `ALPHA × NODES` values each (α node major).
+    a1: [Vec<f64>; 3],
+    /// `U − A1` per channel.
+    r: [Vec<f64>; 3],
+    /// Cosine average of `U − A1` per channel, per α node.
+    r_avg: [Vec<f64>; 3],
+    /// Mean albedo `ρ̄` per channel.
+    rho_bar: [f64; 3],
+}
+
+impl ComponentTables {
+    fn zero(na: usize) -> Self {
+        Self {
+            a1: std::array::from_fn(|_| vec![0.0; na * NODES]),
+            r: std::array::from_fn(|_| vec![0.0; na * NODES]),
+            r_avg: std::array::from_fn(|_| vec![0.0; na]),
+            rho_bar: [0.0; 3],
+        }
+    }
+
+    /// `self += k · other`.
+    fn add(&mut self, k: f64, other: &Self) {
+        if k == 0.0 {
+            return;
+        }
+        for c in 0..3 {
+            for (x, y) in self.a1[c].iter_mut().zip(&other.a1[c]) {
+                *x += k * y;
+            }
+            for (x, y) in self.r[c].iter_mut().zip(&other.r[c]) {
+                *x += k * y;
+            }
+            for (x, y) in self.r_avg[c].iter_mut().zip(&other.r_avg[c]) {
+                *x += k * y;
+            }
+            self.rho_bar[c] += k * other.rho_bar[c];
+        }
+    }
+
+    /// True when every value is zero (the basis table is left out).
+    fn is_zero(&self) -> bool {
+        self.a1.iter().chain(&self.r).chain(&self.r_avg).all(|v| v.iter().all(|&x| x == 0.0))
+            && self.rho_bar.iter().all(|&x| x == 0.0)
+    }
+}
+
+/// The tables for `vary` from the basis tables (`Coef::ALL` order): the factors that do not
+/// vary take the material's values `rho0`, `c0`. With `rho0`, `c0` per channel the folded
+/// tables are the same linear combination the element's weights give.
+fn fold(basis: &[ComponentTables], vary: Vary, rho0: [f64; 3], c0: f64) -> Folded {
+    let slots: Vec<Coef> = Coef::ALL
+        .into_iter()
+        .filter(|c| {
+            let (r, k) = c.factors();
+            (!r || vary.rho) && (!k || vary.c)
+        })
+        .collect();
+    let na = basis[0].r_avg[0].len();
+    let mut tabs: Vec<ComponentTables> = slots.iter().map(|_| ComponentTables::zero(na)).collect();
+    for (b, t) in Coef::ALL.iter().zip(basis) {
+        let (has_rho, has_c) = b.factors();
+        let slot = Coef::ALL
+            .into_iter()
+            .find(|s| s.factors() == (has_rho && vary.rho, has_c && vary.c))
+            .expect("every factor pair is a slot");
+        let j = slots.iter().position(|&s| s == slot).expect("the slot is kept");
+        for (c, &r0) in rho0.iter().enumerate() {
+            let k = if has_rho && !vary.rho { r0 } else { 1.0 } * if has_c && !vary.c { c0 } else { 1.0 };
+            if k == 0.0 {
+                continue;
+            }
+            let d = &mut tabs[j];
+            for (x, y) in d.a1[c].iter_mut().zip(&t.a1[c]) {
+                *x += k * y;
+            }
+            for (x, y) in d.r[c].iter_mut().zip(&t.r[c]) {
+                *x += k * y;
+            }
+            for (x, y) in d.r_avg[c].iter_mut().zip(&t.r_avg[c]) {
+                *x += k * y;
+            }
+            d.rho_bar[c] += k * t.rho_bar[c];
+        }
+    }
+    let keep: Vec<usize> = (0..slots.len()).filter(|&j| !tabs[j].is_zero()).collect();
+    let flats = |f: &dyn Fn(&ComponentTables, usize) -> Vec<f64>| {
+        keep.iter().flat_map(|&j| (0..3).map(move |c| (j, c))).map(|(j, c)| Flat::new(f(&tabs[j], c))).collect()
+    };
+    Folded {
+        coefs: keep.iter().map(|&j| slots[j]).collect(),
+        a1: flats(&|t, c| t.a1[c].clone()),
+        r: flats(&|t, c| t.r[c].clone()),
+        r_avg: flats(&|t, c| t.r_avg[c].clone()),
+        rho_bar: keep.iter().map(|&j| tabs[j].rho_bar).collect(),
     }
 }
 
@@ -743,50 +994,68 @@ fn escape_and_tau(coats: &[Coat]) -> (Vec<f64>, [f64; 3]) {
     (escape, tau)
 }
 
-/// `A1(μ)` and `U(μ) − A1(μ)` of one basecoat component under each coat, and its mean albedo
-/// `ρ̄` (the estimators of `coated_paint::layer_tables`, the component's own sampler). The
-/// coats differ only in roughness, so the basecoat samples are drawn once for all of them.
-fn component_tables(coats: &[Coat], base: &Basecoat) -> (Vec<(MuTable, MuTable)>, [f64; 3]) {
+/// `A1(μ)` and `U(μ) − A1(μ)` of one basecoat component under each coat, their cosine
+/// averages and its mean albedo `ρ̄` (the estimators of `coated_paint::layer_tables`, the
+/// component's own sampler). The coats differ only in roughness, so the basecoat samples are
+/// drawn once for all of them; the `μ` nodes run on the rayon pool.
+fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
+    use rayon::prelude::*;
     let n = SAMPLES;
     let coat = &coats[0];
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
     let rho_bar = super::coated_paint::mean_albedo(base, super::coated_paint::MEAN_ALBEDO_SAMPLES);
     let na = coats.len();
-    let mut single = vec![Vec::with_capacity(NODES); na];
-    let mut rest = vec![Vec::with_capacity(NODES); na];
-    for k in 0..NODES {
-        let mu = (k as f64 / (NODES - 1) as f64).max(1e-4);
-        let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-        let w_in = coat.refract_in(w);
-        let a_w = coat.attenuation(w_in.z);
-        let mut up = [0.0; 3];
-        let mut out = vec![[0.0; 3]; na];
-        for u in &points {
-            let Some(s) = base.sample(w_in, *u) else { continue };
-            let a_v = coat.attenuation(s.wi.z);
-            let exit = coat.refract_out(s.wi);
-            for c in 0..3 {
-                up[c] += s.weight[c] * a_v[c];
-            }
-            if let Some(v) = exit {
-                for (o, cj) in out.iter_mut().zip(coats) {
-                    let esc = cj.transmittance(v.z);
-                    for c in 0..3 {
-                        o[c] += s.weight[c] * a_v[c] * esc;
+    // Per μ node: (A1, U − A1) per coat.
+    let per_node: Vec<Vec<([f64; 3], [f64; 3])>> = (0..NODES)
+        .into_par_iter()
+        .map(|k| {
+            let mu = (k as f64 / (NODES - 1) as f64).max(1e-4);
+            let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+            let w_in = coat.refract_in(w);
+            let a_w = coat.attenuation(w_in.z);
+            let mut up = [0.0; 3];
+            let mut out = vec![[0.0; 3]; na];
+            for u in &points {
+                let Some(s) = base.sample(w_in, *u) else { continue };
+                let a_v = coat.attenuation(s.wi.z);
+                let exit = coat.refract_out(s.wi);
+                for c in 0..3 {
+                    up[c] += s.weight[c] * a_v[c];
+                }
+                if let Some(v) = exit {
+                    for (o, cj) in out.iter_mut().zip(coats) {
+                        let esc = cj.transmittance(v.z);
+                        for c in 0..3 {
+                            o[c] += s.weight[c] * a_v[c] * esc;
+                        }
                     }
                 }
             }
-        }
-        let norm = n as f64;
-        for (j, cj) in coats.iter().enumerate() {
-            let t_w = cj.transmittance(mu);
-            let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * out[j][c] / norm);
-            let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
-            single[j].push(a1);
-            rest[j].push([0, 1, 2].map(|c| u[c] - a1[c]));
+            let norm = n as f64;
+            coats
+                .iter()
+                .zip(&out)
+                .map(|(cj, o)| {
+                    let t_w = cj.transmittance(mu);
+                    let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * o[c] / norm);
+                    let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
+                    (a1, [0, 1, 2].map(|c| u[c] - a1[c]))
+                })
+                .collect()
+        })
+        .collect();
+    let mut t = ComponentTables::zero(na);
+    t.rho_bar = rho_bar;
+    for j in 0..na {
+        let rest: Vec<[f64; 3]> = (0..NODES).map(|k| per_node[k][j].1).collect();
+        let avg = MuTable::from_values(rest).cosine_average();
+        for (c, &a) in avg.iter().enumerate() {
+            t.r_avg[c][j] = a;
+            for (k, node) in per_node.iter().enumerate() {
+                t.a1[c][j * NODES + k] = node[j].0[c];
+                t.r[c][j * NODES + k] = node[j].1[c];
+            }
         }
     }
-    let tables =
-        single.into_iter().zip(rest).map(|(a, r)| (MuTable::from_values(a), MuTable::from_values(r))).collect();
-    (tables, rho_bar)
+    t
 }

@@ -2,13 +2,10 @@
 //! has), scalar f32 and the f64 reference, on random and hard-case directions, with masked-off
 //! lanes, non-unit and invalid inputs, and lengths that are not a multiple of the lane count.
 
+use crate::GLOBAL;
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, SimdLevel, Src3};
 use lacquer::rng::Pcg32;
 use lacquer::{Material, Vec3};
-use std::sync::Mutex;
-
-/// The SIMD level and thread count are process-wide: tests that change them take turns.
-static GLOBAL: Mutex<()> = Mutex::new(());
 
 /// Materials covering every lane model and its branches (and one scalar-only model).
 const MATERIALS: &[&str] = &[
