@@ -1003,16 +1003,7 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
     let n = SAMPLES;
     let coat = &coats[0];
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
-    let mut rho_bar = [0.0; 3];
-    for (k, point) in points.iter().enumerate() {
-        let v = super::hammersley3((k * 7919) % n, n);
-        let w = cosine_hemisphere(v[1], v[2]);
-        if let Some(s) = base.sample(w, *point) {
-            for (c, r) in rho_bar.iter_mut().enumerate() {
-                *r += s.weight[c] / n as f64;
-            }
-        }
-    }
+    let rho_bar = super::coated_paint::mean_albedo(base, super::coated_paint::MEAN_ALBEDO_SAMPLES);
     let na = coats.len();
     // Per μ node: (A1, U − A1) per coat.
     let per_node: Vec<Vec<([f64; 3], [f64; 3])>> = (0..NODES)
