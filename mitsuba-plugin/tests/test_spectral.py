@@ -72,11 +72,12 @@ def rgb_values(material, wi, wo):
 
 
 @pytest.mark.parametrize("material,tol", [
-    # measured 2.94e-2 (worst channel over the three pairs, relative to the largest channel):
-    # the paint's nonlinearity in the film reflectance and 5 nm node interpolation inside the
-    # core (its own test measures 2.0e-2 with its matching functions), plus Mitsuba's tabulated
-    # CIE 1931 against the core's analytic fit
-    (PEARL, 0.04),
+    # measured 4.31e-2 (worst channel over the three pairs, relative to the largest channel;
+    # 2.94e-2 before the basecoat mean-albedo fix changed this flaked paint's ρ̄ and with it the
+    # layering's 1/(1 − ρ̄ r) term): the paint's nonlinearity in the film reflectance and 5 nm
+    # node interpolation inside the core (its own test: 3.3e-2, was 2.0e-2, with its matching
+    # functions), plus Mitsuba's tabulated CIE 1931 against the core's analytic fit
+    (PEARL, 0.06),
     # measured 0.123: HTSG's RGB path evaluates one dominant wavelength per channel, the
     # spectral path the whole spectrum (the core's test: 0.113)
     ({"model": "htsg"}, 0.15),
