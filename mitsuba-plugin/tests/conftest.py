@@ -72,6 +72,24 @@ def lacquer_dict(material):
     return {"type": "lacquer", "material": json.dumps(material)}
 
 
+def eval_pdf_pairs(bsdf, n):
+    """f·cos and pdf of `bsdf` on n fixed random direction pairs (scalar variants), one row per
+    pair: the colour channels then the pdf. The interaction is zeroed, so uv = (0, 0) for
+    textured materials."""
+    import numpy as np
+
+    ctx, si = mi.BSDFContext(), dr.zeros(mi.SurfaceInteraction3f)
+    rng = np.random.default_rng(7)
+    out = []
+    for _ in range(n):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        a[2], b[2] = abs(a[2]) + 0.05, abs(b[2]) + 0.05
+        si.wi = dr.normalize(mi.Vector3f(*a))
+        f, p = bsdf.eval_pdf(ctx, si, dr.normalize(mi.Vector3f(*b)))
+        out.append(list(np.array(f)) + [float(p)])
+    return np.array(out)
+
+
 def load_lacquer(material):
     """Instantiates the plugin; when the model is not registered on this branch (as `lacquer
     models` would show: the plugin reports the C ABI's LQ_ERR_UNKNOWN_NAME), skips where

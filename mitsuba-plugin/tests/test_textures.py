@@ -16,6 +16,7 @@ import drjit as dr
 import mitsuba as mi
 
 import lacquer_mitsuba
+from conftest import eval_pdf_pairs
 
 W = 24  # image width and height (pixels)
 SPP = 4
@@ -191,16 +192,7 @@ def test_spectral_pearl_with_texture_is_a_clear_error(scalar_spectral):
 
 def evals(bsdf, n=32):
     """f·cos and pdf on fixed direction pairs (scalar variant)."""
-    ctx, si = mi.BSDFContext(), dr.zeros(mi.SurfaceInteraction3f)
-    rng = np.random.default_rng(7)
-    out = []
-    for _ in range(n):
-        a, b = rng.normal(size=3), rng.normal(size=3)
-        a[2], b[2] = abs(a[2]) + 0.05, abs(b[2]) + 0.05
-        si.wi = dr.normalize(mi.Vector3f(*a))
-        f, p = bsdf.eval_pdf(ctx, si, dr.normalize(mi.Vector3f(*b)))
-        out.append(list(np.array(f)) + [float(p)])
-    return np.array(out)
+    return eval_pdf_pairs(bsdf, n)
 
 
 def test_constant_texture_is_the_plain_property(scalar_rgb):
