@@ -94,7 +94,7 @@ build lacquer_path lacquer_path.cpp
 # What the plugins were built for: register() refuses to load them into another Mitsuba.
 "$py" - "$out_dir/build_info.json" "$with_llvm" <<'PYEOF'
 import importlib.metadata as m, json, sys
-variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb"] if sys.argv[2] == "1" else [])
+variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb", "llvm_ad_spectral"] if sys.argv[2] == "1" else [])
 info = {"mitsuba": m.version("mitsuba"), "drjit": m.version("drjit"), "variants": variants}
 with open(sys.argv[1], "w") as f:
     json.dump(info, f, indent=1)

@@ -34,7 +34,7 @@ __all__ = ["register", "install", "uninstall", "mitsuba_plugin_dir", "plugin_dir
            "wavefront", "render", "uses_lacquer", "LacquerError"]
 
 #: Variants the native plugin registers (when built with the llvm variant).
-native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
+native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb", "llvm_ad_spectral")
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 
