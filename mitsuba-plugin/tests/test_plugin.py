@@ -272,10 +272,12 @@ DIFFUSE = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.3, 0.5,
 SYMBOLIC_WARNING = "is being traced inside a symbolic Dr.Jit loop or call"
 
 
-def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_object(llvm_rgb, capfd):
+@pytest.mark.parametrize("jit", ["llvm_rgb", "llvm_spectral"])
+def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_object(request, jit, capfd):
     """A symbolic virtual call traces every live BSDF of the variant: a lacquer object that the
     rendered scene does not use returns zero there (never selected), so the render is bit for
     bit the one made without it, and the object warns once (not per render) naming the fix."""
+    request.getfixturevalue(jit)  # llvm_ad_rgb, llvm_ad_spectral: the same rules
     assert dr.flag(dr.JitFlag.SymbolicLoops) and dr.flag(dr.JitFlag.SymbolicCalls)  # Mitsuba's default
     gc.collect()  # no lacquer object of an earlier test alive for the reference
     ref = np.array(mi.render(small_scene(DIFFUSE), seed=5))
@@ -293,10 +295,12 @@ def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_objec
     del live
 
 
-def test_llvm_lacquer_scene_symbolic(llvm_rgb, capfd, caplog):
+@pytest.mark.parametrize("jit", ["llvm_rgb", "llvm_spectral"])
+def test_llvm_lacquer_scene_symbolic(request, jit, capfd, caplog):
     """A scene that uses lacquer: lacquer_mitsuba.render in Mitsuba's default (symbolic) flags
     switches to wavefront mode, says so, and gives bit for bit the wavefront render; plain
     mi.render in symbolic mode renders the lacquer surface black and warns (not silently)."""
+    request.getfixturevalue(jit)
     scene = small_scene(lacquer_dict({"model": "lambert", "albedo": 0.8}))
     scene.shapes()[0].bsdf().set_id("used_lacquer")
     assert lacquer_mitsuba.uses_lacquer(scene) and not lacquer_mitsuba.uses_lacquer(small_scene(DIFFUSE))
