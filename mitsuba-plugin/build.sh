@@ -9,7 +9,7 @@
 #   4. plugins/build_info.json (the mitsuba / drjit versions and variants built for) and a .pth
 #      file so that `import lacquer_mitsuba` works in the venv.
 # mitsuba-plugin/wheel.sh packs the result into a wheel (dist/lacquer_mitsuba-*.whl).
-# Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb).
+# Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb / llvm_ad_spectral).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/.." && pwd)"

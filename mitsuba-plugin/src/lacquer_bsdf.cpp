@@ -19,12 +19,16 @@
 // Variants: scalar_rgb, scalar_spectral (materials with spectral physics, LQ_LOBE_SPECTRAL:
 // evaluated by the core at the ray's wavelengths, lq_eval_spectral / lq_sample_spectral; the
 // others: the RGB result upsampled per evaluation with Mitsuba's own sRGB model, Jakob &
-// Hanika 2019, scaled for values above 1) and llvm_ad_rgb
+// Hanika 2019, scaled for values above 1), llvm_ad_rgb and llvm_ad_spectral
 // (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
 // the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
 // write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
 // with dr.JitFlag.SymbolicLoops and SymbolicCalls off; traced symbolically the plugin returns
-// zero / an invalid sample and warns once per object, see symbolic_scope()).
+// zero / an invalid sample and warns once per object, see symbolic_scope()). llvm_ad_spectral
+// follows scalar_spectral: LQ_LOBE_SPECTRAL materials through lq_eval_spectral /
+// lq_sample_spectral on the active lanes with their four wavelengths (packed on the host, run
+// in blocks on Dr.Jit's thread pool), every other material through the RGB batched path with
+// the result upsampled per lane as scalar_spectral upsamples it.
 //
 // Parameters (see docs/mitsuba.md):
 //   model      string   a Lacquer model name (`lacquer models`), e.g. "coated_paint"
