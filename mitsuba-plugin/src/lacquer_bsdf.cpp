@@ -1285,7 +1285,15 @@ private:
         if (!m_spatial || !si.has_uv_partials())
             return false;
         Mask has = dr::any(si.duv_dx != 0.f) || dr::any(si.duv_dy != 0.f);
-        if (dr::none_or<false>(has))
+        // Decided on the host: dr::none_or<false> is always false for JIT arrays (it never
+        // evaluates), which sent every batch of a sparkle material with partials arrays (all
+        // zero, e.g. Mitsuba's `path`) through the interleaved spatial calls with the huge
+        // footprint, about twice the cost of the mean lobe's SoA calls.
+        MaskJ has_j = lanes(has, n);
+        dr::eval(has_j);
+        const uint8_t *hp = mask_bytes(has_j);
+        dr::sync_thread();
+        if (std::none_of(hp, hp + n, [](uint8_t b) { return b != 0; }))
             return false;
         const float huge = 1e6f;
         uv = interleave(n, { si.uv.x(), si.uv.y() });
