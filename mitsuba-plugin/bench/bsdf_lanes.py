@@ -13,6 +13,8 @@ upsampled per lane); in llvm_ad_rgb the same two paints run the RGB path.
 Run (after mitsuba-plugin/build.sh; needs DRJIT_LIBLLVM_PATH, see test.sh):
     .venv-mitsuba/bin/python mitsuba-plugin/bench/bsdf_lanes.py [--lanes 1000000 --repeat 10]
         [--variant llvm_ad_spectral] [--paints]   (--paints: add the two paints)
+        [--core]   (llvm_ad_spectral: also time the C ABI's lq_eval_spectral on the same arrays,
+                    one call on the calling thread, through liblacquer.so: $LACQUER_LIBRARY)
 Prints a Markdown table; --json PATH also writes the figures.
 """
 
@@ -69,6 +71,7 @@ def main():
     ap.add_argument("--json", default=None)
     ap.add_argument("--variant", default="llvm_ad_rgb", choices=["llvm_ad_rgb", "llvm_ad_spectral"])
     ap.add_argument("--paints", action="store_true")
+    ap.add_argument("--core", action="store_true")
     args = ap.parse_args()
 
     mi.set_variant(args.variant)
@@ -113,10 +116,32 @@ def main():
         rows.append(row)
         print(row, flush=True)
 
+    if args.core and args.variant == "llvm_ad_spectral":
+        # The plugin's spectral path against the core's own call on the same inputs: what the
+        # packing of lanes into interleaved arrays costs on top (docs/mitsuba.md, Spectral).
+        import ctypes
+
+        lib = ctypes.CDLL(os.environ["LACQUER_LIBRARY"])
+        m = ctypes.c_void_p()
+        assert lib.lq_material_from_json(json.dumps(PAINTS["pearl_paint"][0]).encode(), ctypes.byref(m)) == 0
+        a = np.ascontiguousarray(np.array(wo, dtype=np.float32).T)
+        b = np.ascontiguousarray(np.array(si.wi, dtype=np.float32).T)
+        lam = np.ascontiguousarray(np.array(si.wavelengths, dtype=np.float32).T)
+        f = np.zeros((n, 4), np.float32)
+        ptr = [x.ctypes.data_as(ctypes.c_void_p) for x in (a, b, lam, f)]
+        lib.lq_eval_spectral.argtypes = [ctypes.c_void_p, ctypes.c_size_t] + [ctypes.c_void_p] * 6
+        core = timed(lambda: lib.lq_eval_spectral(m, n, ptr[0], ptr[1], None, None, ptr[2], ptr[3]),
+                     args.repeat) / n * 1e9
+        lib.lq_material_free(m)
+        rows.append({"material": "pearl_paint: lq_eval_spectral, 1 thread", "lacquer eval": core,
+                     "lacquer sample": 0.0})
+        print(rows[-1], flush=True)
+
     print(f"\n{args.variant}, {n} lanes, {dr.thread_count()} Dr.Jit threads, min of {args.repeat}; "
           f"load average after: {os.getloadavg()[0]:.1f}")
     print("| material | eval: lacquer | eval: built-in | ratio | sample: lacquer | sample: built-in | ratio |")
     print("|---|---|---|---|---|---|---|")
+
     def cell(v):
         return f"{v:.1f}" if v else "-"
 
