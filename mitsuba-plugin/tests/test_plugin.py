@@ -272,14 +272,14 @@ DIFFUSE = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.3, 0.5,
 
 
 def same_render(a, b):
-    """Two llvm renders of one scene with one seed. Not compared bit for bit: the film's
-    splats (Gaussian filter: overlapping pixels) are atomic adds from Dr.Jit's worker
-    threads, whose order varies. Measured on the shared 2-core machine: 1 render in 30
-    differed from the first in llvm_ad_rgb (129 of 384 pixels) and 1 in 20 wavefront lacquer
-    renders in llvm_ad_spectral, by up to 4.8e-7 on values up to 1.48 (a few ulp); the test
-    failed that way about 1 run in 4 in llvm_ad_spectral. 1e-5 relative is far below any
-    real difference (a lacquer object that was not zero where unused would change whole
-    pixels)."""
+    """Two llvm renders of one scene with one seed. Not compared bit for bit: with two or more
+    live BSDFs (a real virtual call) Dr.Jit's renders vary in the last bits between runs, with
+    no lacquer involved: a diffuse scene with a live `roughconductor` differed in 1 of 40
+    llvm_ad_spectral renders by 4.8e-7 (values up to 1.48, a few ulp); with live lacquer
+    objects 1 of 30 llvm_ad_rgb renders differed (129 of 384 pixels), and the bit-for-bit
+    check failed about 1 run in 4 in llvm_ad_spectral (the shared 2-core machine). 1e-5
+    relative is far below any real difference (a lacquer object that was not zero where
+    unused would change whole pixels)."""
     return np.allclose(a, b, rtol=1e-5, atol=1e-6)
 SYMBOLIC_WARNING = "is being traced inside a symbolic Dr.Jit loop or call"
 
