@@ -1063,6 +1063,9 @@ private:
                                        size_t n, const SurfaceInteraction3f &si) const {
         if constexpr (dr::is_jit_v<Float> && is_spectral_v<Spectrum>) {
             std::vector<float> c0(n), c1(n), c2(n), sc(n);
+            // Mitsuba loads its coefficient table on the first fetch: do that here, on the
+            // calling thread (a failure then raises here, not inside a pool worker).
+            (void) srgb_model_fetch(Color<float, 3>(0.5f, 0.5f, 0.5f));
             // On Dr.Jit's pool in blocks of 4096 lanes (about 60 ns per lane on one core).
             spectral_chunks(n, "srgb_model_fetch", [&](size_t begin, size_t end) {
                 for (size_t i = begin; i < end; ++i) {
