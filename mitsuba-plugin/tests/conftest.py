@@ -54,13 +54,26 @@ def scalar_spectral():
     yield
 
 
-@pytest.fixture
-def llvm_rgb():
+def _llvm_variant(variant):
     if not os.environ.get("DRJIT_LIBLLVM_PATH") and not any(
         os.path.exists(p) for p in ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",)
     ):
         skip_or_fail("no libLLVM for Dr.Jit (test.sh installs libllvm19 and sets DRJIT_LIBLLVM_PATH)")
-    set_variant("llvm_ad_rgb")
+    set_variant(variant)
+
+
+@pytest.fixture
+def llvm_rgb():
+    _llvm_variant("llvm_ad_rgb")
+    yield
+    mi.set_variant("scalar_rgb")
+
+
+@pytest.fixture
+def llvm_spectral():
+    """llvm_ad_spectral with the native plugin (a plugin built without it fails: set_variant
+    asserts register() == "native")."""
+    _llvm_variant("llvm_ad_spectral")
     yield
     mi.set_variant("scalar_rgb")
 
