@@ -566,8 +566,8 @@ def texture_inputs(material: dict) -> dict:
 
 def artist_inputs(settings) -> dict:
     """The node group inputs set from the material's artist controls (not fitted)."""
-    return {"Orange Peel": float(settings.orange_peel_um),
-            "Orange Peel Wavelength": float(settings.orange_peel_wavelength_mm),
+    return {"Orange Peel": props.core_value(settings, "orange_peel_um"),
+            "Orange Peel Wavelength": props.core_value(settings, "orange_peel_wavelength_mm"),
             "Flake Scale": float(settings.flake_scale)}
 
 

@@ -3,13 +3,19 @@ render settings (``scene.lacquer``).
 
 The material's PropertyGroup is generated at registration from the core's parameter list
 (``lacquer models``: name, kind, default, range, unit), so the panel, the saved .blend and the
-JSON handed to the renderer use the core's names and units exactly.
+JSON handed to the renderer use the core's names and units exactly — but for angles (Blender's
+ANGLE subtype, radians) and lengths: a parameter in µm, nm or mm (``flake_size_um``, …) is a
+Blender length in metres (``flake_size``: subtype DISTANCE, unit LENGTH, shown in the scene's
+unit system) under the name without the unit suffix, converted back to the core's unit exactly
+(see :func:`core_value`). Files saved before (properties ``flake_size_um`` … in the core's
+units) are migrated when they load (:func:`migrate_lengths`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import struct
 import time
 
 import bpy
@@ -196,6 +202,7 @@ def on_load_post(*_args):
 
     LAST_UPGRADE.clear()
     try:
+        LAST_UPGRADE["lengths_migrated"] = migrate_file()
         LAST_UPGRADE.update(nodegroup.upgrade_file())
     except Exception as e:  # noqa: BLE001  (a handler must not break loading the file)
         LAST_UPGRADE["errors"] = [str(e)]
@@ -209,6 +216,83 @@ def _on_artist_change(self, context):
     mat = self.id_data
     if isinstance(mat, bpy.types.Material) and self.enabled:
         nodegroup.write_artist_inputs(mat)
+
+
+#: Metres per core unit, by the suffix of a length's name.
+LENGTH_SUFFIXES = {"_um": 1e-6, "_nm": 1e-9, "_mm": 1e-3}
+
+#: The artist controls that are lengths: old property name (the core's unit) → metres per unit.
+ARTIST_LENGTHS = {"orange_peel_um": 1e-6, "orange_peel_wavelength_mm": 1e-3}
+
+
+def length_scale(name: str):
+    """Metres per unit of a parameter (or artist control) named with a length suffix, else None."""
+    for suffix, scale in LENGTH_SUFFIXES.items():
+        if name.endswith(suffix):
+            return scale
+    return None
+
+
+def prop_name(name: str) -> str:
+    """The ``material.lacquer`` property of a core parameter or artist control: the name
+    without its unit suffix for lengths (stored in metres), the name itself otherwise."""
+    return name[:-3] if length_scale(name) is not None else name
+
+
+def _f32(x: float) -> float:
+    return struct.unpack("f", struct.pack("f", x))[0]
+
+
+def to_core_units(metres: float, scale: float) -> float:
+    """A length stored by Blender (float32 metres) in the core's unit: the shortest decimal whose
+    metres round to the same float32, so 20 µm typed or loaded comes back as 20.0 exactly."""
+    x = _f32(float(metres))
+    for digits in range(1, 18):
+        d = float(f"{x / scale:.{digits}g}")
+        if _f32(d * scale) == x:
+            return d
+    return x / scale
+
+
+def core_value(settings, name: str):
+    """A length parameter or artist control of ``settings`` in the core's unit (µm, nm, mm),
+    read from the metric property, or from the unmigrated property of an older file."""
+    scale = length_scale(name)
+    old = settings.get(name)  # the ID property an older extension saved, if not migrated yet
+    if old is not None:
+        return float(old)  # (a linked material, or a file opened before the extension was enabled)
+    return to_core_units(getattr(settings, prop_name(name)), scale)
+
+
+def migrate_lengths(settings) -> list:
+    """Moves lengths saved by extensions before the metric properties (``flake_size_um`` = 20
+    in µm …) to the metric ones (``flake_size`` = 2e-5 m) and drops the old keys; returns the
+    names moved. Idempotent (the old keys are gone after the first call)."""
+    global _loading
+    moved = []
+    names = [p["name"] for p in catalog.params() if length_scale(p["name"]) is not None] + list(ARTIST_LENGTHS)
+    _loading = True
+    try:
+        for name in names:
+            if name in settings.keys():
+                value = float(settings[name])
+                del settings[name]
+                setattr(settings, prop_name(name), value * length_scale(name))
+                moved.append(name)
+    finally:
+        _loading = False
+    return moved
+
+
+def migrate_file() -> dict:
+    """:func:`migrate_lengths` on every local Lacquer material of the open file (load_post)."""
+    out = {}
+    for mat in bpy.data.materials:
+        if mat.library is None and hasattr(mat, "lacquer"):
+            moved = migrate_lengths(mat.lacquer)
+            if moved:
+                out[mat.name] = moved
+    return out
 
 
 def is_angle(p: dict) -> bool:
@@ -229,6 +313,16 @@ def _prop_for(p: dict):
         return FloatProperty(name=label, description=doc, default=math.radians(float(p["default"])),
                              min=math.radians(float(p["min"])), max=math.radians(float(p["max"])),
                              subtype="ANGLE", unit="ROTATION", precision=1, update=_on_param_change)
+    scale = length_scale(name) if kind == "scalar" else None
+    if scale is not None:
+        # A length: metres, shown in the scene's unit system (µm, nm, thou …); material_json
+        # converts back to the core's unit.
+        label = label.replace(f" ({unit})", "") if unit else label
+        for u in ("µm", "nm", "mm"):
+            label = label.replace(f" ({u})", "")
+        return FloatProperty(name=label, description=doc, default=float(p["default"]) * scale,
+                             min=float(p["min"]) * scale, max=float(p["max"]) * scale, subtype="DISTANCE",
+                             unit="LENGTH", precision=3, update=_on_param_change)
     if kind == "scalar":
         lo, hi = float(p["min"]), float(p["max"])
         return FloatProperty(name=label, description=doc, default=float(p["default"]), min=lo, max=hi,
@@ -263,6 +357,9 @@ def material_json(settings) -> dict:
     """The core's material JSON for these settings (every parameter of the model)."""
     out = {"model": catalog.MODEL}
     for p in catalog.params():
+        if length_scale(p["name"]) is not None and p["kind"] == "scalar":
+            out[p["name"]] = core_value(settings, p["name"])
+            continue
         v = getattr(settings, p["name"], None)
         if v is None:
             v = p["default"]
@@ -290,13 +387,16 @@ def load_material_json(settings, material: dict) -> None:
                     v = [v, v, v]
                 elif is_angle(p):
                     v = math.radians(float(v))
+                elif length_scale(p["name"]) is not None and p["kind"] == "scalar":
+                    setattr(settings, prop_name(p["name"]), float(v) * length_scale(p["name"]))
+                    continue
                 setattr(settings, p["name"], v)
     finally:
         _loading = False
 
 
 def make_paint_class():
-    ann = {p["name"]: _prop_for(p) for p in catalog.params()}
+    ann = {prop_name(p["name"]): _prop_for(p) for p in catalog.params()}
     ann.update(
         enabled=BoolProperty(name="Lacquer Paint", description="This material is a Lacquer paint", default=False),
         preset=StringProperty(name="Preset", description="The preset the parameters came from", default=""),
@@ -311,13 +411,16 @@ def make_paint_class():
         # Artist controls: not paint parameters of the core; the node group and LACQUER's export
         # read them (orange peel: rust-core/render/src/perturb.rs; flake scale: the sparkle's
         # surface scale).
-        orange_peel_um=FloatProperty(
-            name="Orange Peel", default=0.0, min=0.0, max=1000.0, soft_max=20.0, precision=2,
-            description="RMS height of the clearcoat's waviness in µm (0 = a perfectly flat coat)",
+        # Lengths in metres (the scene's unit system shows them); core_value gives µm / mm.
+        orange_peel=FloatProperty(
+            name="Orange Peel", default=0.0, min=0.0, max=1e-3, soft_max=20e-6, precision=3,
+            subtype="DISTANCE", unit="LENGTH",
+            description="RMS height of the clearcoat's waviness (0 = a perfectly flat coat)",
             update=_on_artist_change),
-        orange_peel_wavelength_mm=FloatProperty(
-            name="Peel Wavelength", default=3.0, min=0.01, max=1000.0, soft_min=0.1, soft_max=20.0,
-            precision=2, description="Wavelength of the orange peel in mm", update=_on_artist_change),
+        orange_peel_wavelength=FloatProperty(
+            name="Peel Wavelength", default=3e-3, min=1e-5, max=1.0, soft_min=1e-4, soft_max=20e-3,
+            precision=3, subtype="DISTANCE", unit="LENGTH", description="Wavelength of the orange peel",
+            update=_on_artist_change),
         sparkle_lod=BoolProperty(
             name="Sparkle Level of Detail", default=True, update=_on_artist_change,
             description="In Cycles, fade flake cells into the mean lobe where a pixel covers more cells than "

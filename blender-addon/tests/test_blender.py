@@ -186,7 +186,7 @@ def test_panels_draw_every_parameter(renders):
     """The Material and Render panels and the preset menu draw (into a recording layout): every
     paint parameter the core lists is on the panel, and every menu and operator they name exists."""
     ui = renders["report"]["ui"]
-    for name in ("flake_density", "flake_size_um", "flake_orientation_deg", "coat_ior", "pearl_film_nm",
+    for name in ("flake_density", "flake_size", "flake_orientation_deg", "coat_ior", "pearl_film",
                  "base_color", "samples", "max_depth"):
         assert name in ui["ui_props"], ui
     assert "surface_scale_mm" not in ui["ui_props"]  # set by the engine, not the artist
@@ -715,6 +715,32 @@ def test_flake_scale_units_and_fit_text(smokes):
     assert abs(a["angle"]["json_deg"] - a["angle"]["preset_deg"]) < 1e-3, a
     assert a["fit_text"] and not any("_rms" in line or "snr_db" in line for line in a["fit_text"]), a
     assert a["fit_text"][0].startswith("Match to the exact paint:"), a
+
+
+def test_lengths_use_blender_units_and_reach_the_core_unchanged(smokes):
+    """Flake and pearl size, pearl film, coat thickness, orange peel and its wavelength are
+    Blender lengths in metres (DISTANCE / LENGTH) without the old µm/nm names; set under metric
+    (adaptive, µm) and imperial units they reach the core's JSON, the LACQUER export and the
+    node group in µm / nm / mm exactly (float32 storage rounds to the typed decimal), and the
+    scene's unit system shows them."""
+    r = smokes["report"]["artist"]["lengths"]
+    print("\nLengths shown: " + ", ".join(f"{k}: {v['shown']}" for k, v in r["systems"].items()))
+    assert all(v == ["DISTANCE", "LENGTH"] for v in r["subtypes"].values()), r["subtypes"]
+    assert r["old_names_gone"] == [], r
+    assert set(r["systems"]) == {"METRIC/ADAPTIVE", "METRIC/MICROMETERS", "IMPERIAL/ADAPTIVE"}, r
+    for system, v in r["systems"].items():
+        assert v["json"] == v["expected"] and v["export"] == v["expected"], (system, v)
+        assert v["node_flake_size"] == 23.0 and v["node_orange_peel"] == [0.75, 4.5], (system, v)
+    assert "µm" in r["systems"]["METRIC/ADAPTIVE"]["shown"], r  # e.g. "23 µm"
+    assert "µm" not in r["systems"]["IMPERIAL/ADAPTIVE"]["shown"], r  # thou / inches
+    # A file saved with the old properties (flake_size_um = 25 µm, orange peel 0.75 µm at
+    # 4.5 mm) is migrated on load: metric values, old keys dropped, the core sees 25 µm.
+    m = smokes["report"]["editing"]["lengths_migrated"]
+    # float32 storage: relative half-ulp 6e-8 (measured 2.5e-8, 3.5e-8, 4.3e-8); tolerance 1e-7.
+    for key, metres in (("flake_size_m", 25e-6), ("orange_peel_m", 0.75e-6), ("orange_peel_wavelength_m", 4.5e-3)):
+        assert abs(m[key] / metres - 1.0) < 1e-7, m
+    assert m["json_flake_size_um"] == 25.0 and m["old_keys_left"] == [], m
+    assert m["node"] == {"Flake Size": 25.0, "Orange Peel": 0.75, "Orange Peel Wavelength": 4.5}, m
 
 
 def test_asset_library_loads_and_an_asset_is_a_working_paint(smokes):
