@@ -5,9 +5,9 @@ The material's PropertyGroup is generated at registration from the core's parame
 (``lacquer models``: name, kind, default, range, unit), so the panel, the saved .blend and the
 JSON handed to the renderer use the core's names and units exactly — but for angles (Blender's
 ANGLE subtype, radians) and lengths: a parameter in µm, nm or mm (``flake_size_um``, …) is a
-Blender length in metres (``flake_size``: subtype DISTANCE, unit LENGTH, shown in the scene's
-unit system) under the name without the unit suffix, converted back to the core's unit exactly
-(see :func:`core_value`). Files saved before (properties ``flake_size_um`` … in the core's
+Blender length (``flake_size``: subtype DISTANCE, unit LENGTH, shown in the scene's unit
+system) under the name without the unit suffix, its metres kept in ``flake_size_m`` and
+converted back to the core's unit exactly (see :func:`core_value`). Files saved before (properties ``flake_size_um`` … in the core's
 units) are migrated when they load (:func:`migrate_lengths`).
 """
 
@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import math
-import struct
 import time
 
 import bpy
@@ -239,48 +238,82 @@ def prop_name(name: str) -> str:
     return name[:-3] if length_scale(name) is not None else name
 
 
-def _f32(x: float) -> float:
-    return struct.unpack("f", struct.pack("f", x))[0]
+def store_key(name: str) -> str:
+    """The ID property holding a length's metres (``flake_size_um`` → ``flake_size_m``)."""
+    return prop_name(name) + "_m"
+
+
+def scene_unit_scale() -> float:
+    """Metres per Blender unit of the current scene (its Unit Scale; 1 without units or a scene)."""
+    try:
+        units = bpy.context.scene.unit_settings
+        return float(units.scale_length) if units.system != "NONE" and units.scale_length > 0 else 1.0
+    except (AttributeError, TypeError):
+        return 1.0
 
 
 def to_core_units(metres: float, scale: float) -> float:
-    """A length stored by Blender (float32 metres) in the core's unit: the shortest decimal whose
-    metres round to the same float32, so 20 µm typed or loaded comes back as 20.0 exactly."""
-    x = _f32(float(metres))
+    """Metres in the core's unit (``scale`` metres per unit), rounded to the shortest decimal
+    within float32 precision (2⁻²³ relative: a value typed in the panel passes through float32),
+    so that 20 µm typed or loaded comes back as 20.0 exactly."""
+    v = float(metres) / scale
     for digits in range(1, 18):
-        d = float(f"{x / scale:.{digits}g}")
-        if _f32(d * scale) == x:
+        d = float(f"{v:.{digits}g}")
+        if abs(d - v) <= abs(v) * 2.0 ** -23:
             return d
-    return x / scale
+    return v
 
 
 def core_value(settings, name: str):
     """A length parameter or artist control of ``settings`` in the core's unit (µm, nm, mm),
-    read from the metric property, or from the unmigrated property of an older file."""
-    scale = length_scale(name)
+    from the metres it stores, or from the unmigrated property of an older file."""
     old = settings.get(name)  # the ID property an older extension saved, if not migrated yet
     if old is not None:
         return float(old)  # (a linked material, or a file opened before the extension was enabled)
-    return to_core_units(getattr(settings, prop_name(name)), scale)
+    metres = settings.get(store_key(name))
+    if metres is None:
+        return float(_LENGTH_DEFAULTS[name])
+    return to_core_units(metres, length_scale(name))
+
+
+#: Core unit defaults of the lengths (filled by :func:`_length_property`).
+_LENGTH_DEFAULTS: dict = {}
+
+
+def _length_property(name: str, label: str, doc: str, default: float, lo: float, hi: float, update):
+    """A length (``name`` in the core's unit: µm, nm or mm) as a Blender length property.
+
+    Blender shows a LENGTH property's value × the scene's Unit Scale (it holds scene units), so
+    the property reads and writes scene units through ``get``/``set``: the metres are kept in
+    the ID property :func:`store_key` (a double), the panel shows metres in the scene's unit
+    system whatever its Unit Scale, and the core's value does not depend on the scene. Out of
+    range values are clamped to the core's range on writing."""
+    scale = length_scale(name)
+    key = store_key(name)
+    _LENGTH_DEFAULTS[name] = default
+
+    def get(self):
+        return self.get(key, default * scale) / scene_unit_scale()
+
+    def set_(self, value):
+        self[key] = min(max(float(value) * scene_unit_scale(), lo * scale), hi * scale)
+
+    return FloatProperty(name=label, description=doc, default=default * scale, subtype="DISTANCE", unit="LENGTH",
+                         precision=3, get=get, set=set_, update=update)
 
 
 def migrate_lengths(settings) -> list:
     """Moves lengths saved by extensions before the metric properties (``flake_size_um`` = 20
-    in µm …) to the metric ones (``flake_size`` = 2e-5 m) and drops the old keys; returns the
-    names moved. Idempotent (the old keys are gone after the first call)."""
-    global _loading
+    in µm …) to the metric ones (``flake_size``, metres in ``flake_size_m``) and drops the old
+    keys; returns the names moved. Idempotent (the old keys are gone after the first call)."""
     moved = []
     names = [p["name"] for p in catalog.params() if length_scale(p["name"]) is not None] + list(ARTIST_LENGTHS)
-    _loading = True
-    try:
-        for name in names:
-            if name in settings.keys():
-                value = float(settings[name])
-                del settings[name]
-                setattr(settings, prop_name(name), value * length_scale(name))
-                moved.append(name)
-    finally:
-        _loading = False
+    for name in names:
+        if name in settings.keys():
+            value = float(settings[name])
+            del settings[name]
+            settings[store_key(name)] = value * length_scale(name)
+            moved.append(name)
     return moved
 
 
@@ -317,12 +350,10 @@ def _prop_for(p: dict):
     if scale is not None:
         # A length: metres, shown in the scene's unit system (µm, nm, thou …); material_json
         # converts back to the core's unit.
-        label = label.replace(f" ({unit})", "") if unit else label
-        for u in ("µm", "nm", "mm"):
-            label = label.replace(f" ({u})", "")
-        return FloatProperty(name=label, description=doc, default=float(p["default"]) * scale,
-                             min=float(p["min"]) * scale, max=float(p["max"]) * scale, subtype="DISTANCE",
-                             unit="LENGTH", precision=3, update=_on_param_change)
+        for u in ("µm", "nm", "mm", unit):
+            label = label.replace(f" ({u})", "") if u else label
+        return _length_property(name, label, doc, float(p["default"]), float(p["min"]), float(p["max"]),
+                                _on_param_change)
     if kind == "scalar":
         lo, hi = float(p["min"]), float(p["max"])
         return FloatProperty(name=label, description=doc, default=float(p["default"]), min=lo, max=hi,
@@ -388,7 +419,9 @@ def load_material_json(settings, material: dict) -> None:
                 elif is_angle(p):
                     v = math.radians(float(v))
                 elif length_scale(p["name"]) is not None and p["kind"] == "scalar":
-                    setattr(settings, prop_name(p["name"]), float(v) * length_scale(p["name"]))
+                    settings[store_key(p["name"])] = float(v) * length_scale(p["name"])
+                    if p["name"] in settings.keys():
+                        del settings[p["name"]]  # an unmigrated old value would win
                     continue
                 setattr(settings, p["name"], v)
     finally:
@@ -411,16 +444,13 @@ def make_paint_class():
         # Artist controls: not paint parameters of the core; the node group and LACQUER's export
         # read them (orange peel: rust-core/render/src/perturb.rs; flake scale: the sparkle's
         # surface scale).
-        # Lengths in metres (the scene's unit system shows them); core_value gives µm / mm.
-        orange_peel=FloatProperty(
-            name="Orange Peel", default=0.0, min=0.0, max=1e-3, soft_max=20e-6, precision=3,
-            subtype="DISTANCE", unit="LENGTH",
-            description="RMS height of the clearcoat's waviness (0 = a perfectly flat coat)",
-            update=_on_artist_change),
-        orange_peel_wavelength=FloatProperty(
-            name="Peel Wavelength", default=3e-3, min=1e-5, max=1.0, soft_min=1e-4, soft_max=20e-3,
-            precision=3, subtype="DISTANCE", unit="LENGTH", description="Wavelength of the orange peel",
-            update=_on_artist_change),
+        # Lengths (the scene's unit system shows them); core_value gives µm / mm.
+        orange_peel=_length_property(
+            "orange_peel_um", "Orange Peel", "RMS height of the clearcoat's waviness (0 = a perfectly flat coat)",
+            0.0, 0.0, 1000.0, _on_artist_change),
+        orange_peel_wavelength=_length_property(
+            "orange_peel_wavelength_mm", "Peel Wavelength", "Wavelength of the orange peel", 3.0, 0.01, 1000.0,
+            _on_artist_change),
         sparkle_lod=BoolProperty(
             name="Sparkle Level of Detail", default=True, update=_on_artist_change,
             description="In Cycles, fade flake cells into the mean lobe where a pixel covers more cells than "

@@ -731,17 +731,19 @@ def _lengths_smoke(scene, mat, node, export) -> dict:
     saved = {k: getattr(mat.lacquer, k) for k in LENGTH_CASES}
     saved_peel = (mat.lacquer.orange_peel, mat.lacquer.orange_peel_wavelength)
     units = scene.unit_settings
-    before = (units.system, units.length_unit)
+    before = (units.system, units.length_unit, units.scale_length)
     rep = {"subtypes": {k: [mat.lacquer.bl_rna.properties[k].subtype, mat.lacquer.bl_rna.properties[k].unit]
                         for k in list(LENGTH_CASES) + ["orange_peel", "orange_peel_wavelength"]},
            "old_names_gone": [k for _, k, _ in LENGTH_CASES.values() if k in mat.lacquer.bl_rna.properties],
            "systems": {}}
-    for system, length_unit in (("METRIC", "ADAPTIVE"), ("METRIC", "MICROMETERS"), ("IMPERIAL", "ADAPTIVE")):
-        units.system, units.length_unit = system, length_unit
+    for system, length_unit, scale in (("METRIC", "ADAPTIVE", 1.0), ("METRIC", "MICROMETERS", 1.0),
+                                       ("IMPERIAL", "ADAPTIVE", 1.0), ("METRIC", "CENTIMETERS", 0.01)):
+        units.system, units.length_unit, units.scale_length = system, length_unit, scale
+        # In scene units, as the panel writes them (a typed "23 µm" is 23e-6 / Unit Scale).
         for k, (metres, _, _) in LENGTH_CASES.items():
-            setattr(mat.lacquer, k, metres)
-        mat.lacquer.orange_peel = 0.75e-6
-        mat.lacquer.orange_peel_wavelength = 4.5e-3
+            setattr(mat.lacquer, k, metres / scale)
+        mat.lacquer.orange_peel = 0.75e-6 / scale
+        mat.lacquer.orange_peel_wavelength = 4.5e-3 / scale
         desc = export.material_desc(mat, export.Report())
         js = props.material_json(mat.lacquer)
         rep["systems"][f"{system}/{length_unit}"] = {
@@ -751,12 +753,15 @@ def _lengths_smoke(scene, mat, node, export) -> dict:
             "node_flake_size": node.inputs["Flake Size"].default_value,
             "node_orange_peel": [node.inputs["Orange Peel"].default_value,
                                  node.inputs["Orange Peel Wavelength"].default_value],
+            # What the panel shows: the property (scene units) × Unit Scale in the unit system.
             "shown": bpy.utils.units.to_string(system, "LENGTH", mat.lacquer.flake_size * units.scale_length),
         }
-    units.system, units.length_unit = before
+        rep["systems"][f"{system}/{length_unit}"]["key"] = f"{system}/{length_unit}/{scale:g}"
+    units.system, units.length_unit, units.scale_length = before
     for k, v in saved.items():
         setattr(mat.lacquer, k, v)
     mat.lacquer.orange_peel, mat.lacquer.orange_peel_wavelength = saved_peel
+    rep["restored_flake_size_um"] = props.material_json(mat.lacquer)["flake_size_um"]
     return rep
 
 

@@ -719,24 +719,27 @@ def test_flake_scale_units_and_fit_text(smokes):
 
 def test_lengths_use_blender_units_and_reach_the_core_unchanged(smokes):
     """Flake and pearl size, pearl film, coat thickness, orange peel and its wavelength are
-    Blender lengths in metres (DISTANCE / LENGTH) without the old µm/nm names; set under metric
-    (adaptive, µm) and imperial units they reach the core's JSON, the LACQUER export and the
-    node group in µm / nm / mm exactly (float32 storage rounds to the typed decimal), and the
-    scene's unit system shows them."""
+    Blender lengths (DISTANCE / LENGTH) without the old µm/nm names; set under metric (adaptive,
+    µm), imperial and centimetre (Unit Scale 0.01) units they reach the core's JSON, the LACQUER
+    export and the node group in µm / nm / mm exactly (the float32 the panel passes rounds to
+    the typed decimal), and the scene's unit system shows them."""
     r = smokes["report"]["artist"]["lengths"]
     print("\nLengths shown: " + ", ".join(f"{k}: {v['shown']}" for k, v in r["systems"].items()))
     assert all(v == ["DISTANCE", "LENGTH"] for v in r["subtypes"].values()), r["subtypes"]
     assert r["old_names_gone"] == [], r
-    assert set(r["systems"]) == {"METRIC/ADAPTIVE", "METRIC/MICROMETERS", "IMPERIAL/ADAPTIVE"}, r
+    assert set(r["systems"]) == {"METRIC/ADAPTIVE", "METRIC/MICROMETERS", "IMPERIAL/ADAPTIVE", "METRIC/CENTIMETERS"}, r
     for system, v in r["systems"].items():
         assert v["json"] == v["expected"] and v["export"] == v["expected"], (system, v)
         assert v["node_flake_size"] == 23.0 and v["node_orange_peel"] == [0.75, 4.5], (system, v)
-    assert "µm" in r["systems"]["METRIC/ADAPTIVE"]["shown"], r  # e.g. "23 µm"
-    assert "µm" not in r["systems"]["IMPERIAL/ADAPTIVE"]["shown"], r  # thou / inches
+    assert r["systems"]["METRIC/ADAPTIVE"]["shown"] == "23 µm", r
+    # Unit Scale 0.01 (a scene in centimetres): the panel still shows 23 µm and the core gets 23.
+    assert r["systems"]["METRIC/CENTIMETERS"]["shown"] == "23 µm", r
+    assert "µm" not in r["systems"]["IMPERIAL/ADAPTIVE"]["shown"], r  # feet / thou
     # A file saved with the old properties (flake_size_um = 25 µm, orange peel 0.75 µm at
     # 4.5 mm) is migrated on load: metric values, old keys dropped, the core sees 25 µm.
     m = smokes["report"]["editing"]["lengths_migrated"]
-    # float32 storage: relative half-ulp 6e-8 (measured 2.5e-8, 3.5e-8, 4.3e-8); tolerance 1e-7.
+    # The property reads float32: relative half-ulp 6e-8 (measured 2.5e-8, 3.5e-8, 4.3e-8);
+    # tolerance 1e-7.
     for key, metres in (("flake_size_m", 25e-6), ("orange_peel_m", 0.75e-6), ("orange_peel_wavelength_m", 4.5e-3)):
         assert abs(m[key] / metres - 1.0) < 1e-7, m
     assert m["json_flake_size_um"] == 25.0 and m["old_keys_left"] == [], m
