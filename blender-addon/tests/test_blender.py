@@ -561,6 +561,23 @@ def _normals(path, alpha_from):
     return n / np.maximum(length, 1e-12), mask & (length[..., 0] > 0.5)
 
 
+def _normals_against_cycles_and_plain(d, name):
+    """The artist scene ``name``'s shading normals (LACQUER's Denoising Normal, Cycles' Normal
+    pass): per pixel where both engines see the plate (at least half the image), the angle in
+    degrees between LACQUER and Cycles and between LACQUER and the plain plate's LACQUER normal
+    (the tilt). Returns ``(angle, tilt, mask)``."""
+    lq_n, m1 = _normals(d / f"artist_{name}_lacquer_normal.exr", d / f"artist_{name}_lacquer.exr")
+    cy_n, m2 = _normals(d / f"artist_{name}_cycles_normal.exr", d / f"artist_{name}_cycles.exr")
+    plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
+    mask = m1 & m2
+    assert mask.sum() > 0.5 * mask.size
+
+    def degrees(a, b):
+        return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1, 1)))[mask]
+
+    return degrees(lq_n, cy_n), degrees(lq_n, plain_n), mask
+
+
 def test_normal_map_on_the_normal_input_renders_in_both_engines(smokes):
     """An Image Texture → Normal Map (tangent space) on the Lacquer node's Normal input: LACQUER
     exports it and its image changes; its shading normals (Denoising Normal) equal Cycles'
@@ -568,13 +585,7 @@ def test_normal_map_on_the_normal_input_renders_in_both_engines(smokes):
     a = smokes["report"]["artist"]
     d = smokes["dir"]
     assert a["normal_map_exported"], a
-    lq_n, m1 = _normals(d / "artist_normalmap_lacquer_normal.exr", d / "artist_normalmap_lacquer.exr")
-    cy_n, m2 = _normals(d / "artist_normalmap_cycles_normal.exr", d / "artist_normalmap_cycles.exr")
-    plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
-    mask = m1 & m2
-    assert mask.sum() > 0.5 * mask.size
-    ang = np.degrees(np.arccos(np.clip((lq_n * cy_n).sum(-1), -1, 1)))[mask]
-    tilt = np.degrees(np.arccos(np.clip((lq_n * plain_n).sum(-1), -1, 1)))[mask]
+    ang, tilt, mask = _normals_against_cycles_and_plain(d, "normalmap")
     lq, plain = read_exr(d / "artist_normalmap_lacquer.exr"), read_exr(d / "artist_plain_lacquer.exr")
     change = float(np.abs(luminance(lq[..., :3]) - luminance(plain[..., :3]))[mask].mean()
                    / luminance(plain[..., :3])[mask].mean())
@@ -662,13 +673,7 @@ def test_bump_node_on_the_normal_input_renders_in_both_engines(smokes):
     a = smokes["report"]["artist"]
     d = smokes["dir"]
     assert a["bump_exported"], a["bump_messages"]
-    lq_n, m1 = _normals(d / "artist_bump_lacquer_normal.exr", d / "artist_bump_lacquer.exr")
-    cy_n, m2 = _normals(d / "artist_bump_cycles_normal.exr", d / "artist_bump_cycles.exr")
-    plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
-    mask = m1 & m2
-    assert mask.sum() > 0.5 * mask.size
-    ang = np.degrees(np.arccos(np.clip((lq_n * cy_n).sum(-1), -1, 1)))[mask]
-    tilt = np.degrees(np.arccos(np.clip((lq_n * plain_n).sum(-1), -1, 1)))[mask]
+    ang, tilt, mask = _normals_against_cycles_and_plain(d, "bump")
     FIGURES["bump"] = {"angle_lacquer_vs_cycles_deg_mean": float(ang.mean()),
                        "angle_deg_p99": float(np.percentile(ang, 99)), "tilt_deg_max": float(tilt.max())}
     print(f"\nBump: LACQUER vs Cycles shading normal {ang.mean():.3f}° mean, "
