@@ -1069,13 +1069,23 @@ def editing_smoke(out: str, size: int) -> dict:
     mat.keyframe_insert("lacquer.flake_density", frame=1)
     mat.lacquer.flake_density = 2.5
     mat.keyframe_insert("lacquer.flake_density", frame=11)
+    # A length (a get/set property in scene units over the stored metres) animates too.
+    saved_size = mat.lacquer.flake_size
+    mat.lacquer.flake_size = 15e-6
+    mat.keyframe_insert("lacquer.flake_size", frame=1)
+    mat.lacquer.flake_size = 25e-6
+    mat.keyframe_insert("lacquer.flake_size", frame=11)
+    node = mat.node_tree.nodes["Lacquer Paint"]
     frames = {}
     for f in (1, 11, 6):
         scene.frame_set(f)
         frames[f] = {"density": mat.lacquer.flake_density, "coverage": cov(),
-                     "expected": fitted(mat.lacquer.flake_density)}
+                     "expected": fitted(mat.lacquer.flake_density),
+                     "flake_size_um": props.material_json(mat.lacquer)["flake_size_um"],
+                     "node_flake_size": node.inputs["Flake Size"].default_value}
     rep["frames"] = frames
     mat.animation_data_clear()
+    mat.lacquer.flake_size = saved_size
     scene.frame_set(1)
     # 3. Bad edits keep the previous valid paint (node group and LACQUER's export).
     mat.lacquer.flake_density = 8.0

@@ -506,12 +506,18 @@ def test_refit_runs_off_the_main_thread_and_applies_on_completion(smokes):
 
 def test_keyframed_paint_parameters_refit_on_frame_change(smokes):
     """flake_density keyed 8 % at frame 1 and 2.5 % at frame 11: at frames 1, 11 and 6 the node
-    group's Flake Coverage is the core's fit of the animated density."""
+    group's Flake Coverage is the core's fit of the animated density; flake_size keyed the same
+    way reaches the core and the node group."""
     frames = smokes["report"]["editing"]["frames"]
     assert abs(frames["1"]["density"] - 8.0) < 1e-5 and abs(frames["11"]["density"] - 2.5) < 1e-5, frames
     assert 2.5 < frames["6"]["density"] < 8.0, frames
     for f in frames.values():
         assert abs(f["coverage"] - f["expected"]) < 1e-6, frames
+    # flake_size (a length: scene units over stored metres) keyed 15 µm / 25 µm: the core and
+    # the node group get the animated value (20 µm at frame 6, the Bézier's midpoint).
+    assert [frames[k]["flake_size_um"] for k in ("1", "11")] == [15.0, 25.0], frames
+    assert abs(frames["6"]["flake_size_um"] - 20.0) < 1e-3, frames  # float32 key interpolation
+    assert all(abs(f["node_flake_size"] - f["flake_size_um"]) < 1e-5 for f in frames.values()), frames
 
 
 def test_bad_edits_keep_the_previous_paint(smokes):
