@@ -7,8 +7,9 @@ JSON handed to the renderer use the core's names and units exactly — but for a
 ANGLE subtype, radians) and lengths: a parameter in µm, nm or mm (``flake_size_um``, …) is a
 Blender length (``flake_size``: subtype DISTANCE, unit LENGTH, shown in the scene's unit
 system) under the name without the unit suffix, its metres kept in ``flake_size_m`` and
-converted back to the core's unit exactly (see :func:`core_value`). Files saved before (properties ``flake_size_um`` … in the core's
-units) are migrated when they load (:func:`migrate_lengths`).
+converted back to the core's unit exactly (see :func:`core_value`). Files saved before
+(properties ``flake_size_um`` … in the core's units) are migrated when they load
+(:func:`migrate_lengths`).
 """
 
 from __future__ import annotations

@@ -1147,7 +1147,8 @@ def editing_smoke(out: str, size: int) -> dict:
     rep["lengths_migrated"] = {
         "flake_size_m": m.lacquer.flake_size, "orange_peel_m": m.lacquer.orange_peel,
         "orange_peel_wavelength_m": m.lacquer.orange_peel_wavelength,
-        "json_flake_size_um": js["flake_size_um"], "old_keys_left": [k for k in m.lacquer.keys() if k.endswith(("_um", "_mm"))],
+        "json_flake_size_um": js["flake_size_um"],
+        "old_keys_left": [k for k in m.lacquer.keys() if k.endswith(("_um", "_mm"))],
         "node": {k: m.node_tree.nodes["Lacquer Paint"].inputs[k].default_value
                  for k in ("Flake Size", "Orange Peel", "Orange Peel Wavelength")}}
     rep["load_post"] = {"upgrade": dict(props.LAST_UPGRADE), "version_after": g.get("lacquer_version"),
