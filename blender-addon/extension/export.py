@@ -273,9 +273,9 @@ def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: R
                                  "uvs": _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)}
             except (RuntimeError, ValueError) as e:
                 report.warn(f"material \"{mat.name}\": bump map not exported ({e})")
-        if settings.orange_peel_um > 0.0:
-            extra["orange_peel"] = {"amplitude_um": float(settings.orange_peel_um),
-                                    "wavelength_mm": float(settings.orange_peel_wavelength_mm),
+        if settings.orange_peel > 0.0:
+            extra["orange_peel"] = {"amplitude_um": props.core_value(settings, "orange_peel_um"),
+                                    "wavelength_mm": props.core_value(settings, "orange_peel_wavelength_mm"),
                                     "metres_per_unit": unit_m, "coords": arrays["coords"]}
         if bindings is not None:
             textures, uv_map = bindings(mat)

@@ -34,6 +34,13 @@ this in the mean-lobe limit):
   and Principled roughness ``(Flake Spread² + Flake Roughness⁴)^¼`` (GGX α of the flake-normal
   distribution combined with the flakes' own α = roughness²), and likewise for pearls.
   Values between 0 and 1 interpolate the weights, roughness and normal (use 0 or 1).
+
+* **Textured Base Color** (version 7): the base Principled's Base Color is
+  ``clamp(Pigment Color + (B·q(B) − F·q(F)), 0, 1)`` with B = Base Color (a texture), F = Fit
+  Base Color and q the core's base colour map (the hidden ``Base Color Map k`` inputs,
+  interpolated linearly on ``fit.BASE_COLOR_GRID``): per channel the pigment the fitted group
+  needs for each base colour, computed by the core's fit (the paint is nonlinear in its pigment
+  albedo, the group linear). Untextured (B = F) it is the fitted Pigment Color bit for bit.
 """
 
 from __future__ import annotations
@@ -48,7 +55,7 @@ from . import props
 
 GROUP_NAME = "Lacquer Coated Paint"
 NODE_NAME = "Lacquer Paint"
-NODE_GROUP_VERSION = 6
+NODE_GROUP_VERSION = 7
 
 #: Cells per metre × flake diameter (µm → m below) so that a planar section of the 3D
 #: Voronoi diagram has cells of one flake's area (measured: mean section area 0.69 / scale²).
@@ -98,13 +105,22 @@ INPUTS = (
     ("Flake Density", "NodeSocketFloat", 3.0, 0.0, 100.0,
      "Metallic flake coverage in % (flake_density); link a texture (values in %) to vary it"),
     ("Fit Base Color", "NodeSocketColor", (0.5, 0.03, 0.03), None, None,
-     "The base colour the fit used (set by the extension): Pigment Color scales by Base Color / this"),
+     "The base colour the fit used (set by the extension): the base colour map's reference"),
     ("Fit Flake Density", "NodeSocketFloat", 3.0, 0.0, 100.0,
      "The flake density the fit used (set by the extension): Flake Coverage scales by Flake Density / this"),
 )
 
+# The base colour map (version 7): the core's ratio q = (pigment − pigment(0)) / base colour per
+# channel at each base colour of fit.BASE_COLOR_GRID (rust-core/src/fit/node_group.rs,
+# BaseColorMap), set by the extension from the fit. Defaults: q = 1 (pigment follows the texel).
+INPUTS = INPUTS + tuple(
+    (fitmod.map_socket(k), "NodeSocketVector", (1.0, 1.0, 1.0), None, None,
+     f"Base colour map (set by the extension): pigment per unit base colour at {t:g}, per channel")
+    for k, t in enumerate(fitmod.BASE_COLOR_GRID))
+
 #: Inputs the extension sets and hides on the material's node (not for artists to edit).
-HIDDEN_INPUTS = ("Fit Base Color", "Fit Flake Density")
+HIDDEN_INPUTS = ("Fit Base Color", "Fit Flake Density") + tuple(
+    fitmod.map_socket(k) for k in range(len(fitmod.BASE_COLOR_GRID)))
 
 #: Orange-peel waves: (unit direction in the object's metric coordinates, phase). The render
 #: crate's table (rust-core/render/src/perturb.rs, ``PEEL_WAVES``), which LACQUER evaluates; the
@@ -320,14 +336,42 @@ def _build(group):
         rough = b.mix("FLOAT", sparkle, mean_rough, fr, x=-400, y=y0 - 300)
         return weight, normal, rough
 
-    # Textured parameters: the fitted Pigment Color and Flake Coverage scale with Base Color /
-    # Fit Base Color and Flake Density / Fit Flake Density (1 when nothing is linked: the inputs
-    # then hold the fitted values). Linear in the texel, exact at the fitted paint; the pigment's
-    # interreflection under the coat makes it approximate elsewhere (measured in the README).
-    ratio = b.vmath("DIVIDE", I["Base Color"], b.vmath("MAXIMUM", I["Fit Base Color"], (1e-4, 1e-4, 1e-4),
-                                                       x=-2200, y=-700), x=-2100, y=-700)
-    pigment = b.vmath("MINIMUM", b.vmath("MULTIPLY", I["Pigment Color"], ratio, x=-2000, y=-700), (1.0, 1.0, 1.0),
-                      x=-1900, y=-700)
+    # Textured Base Color (version 7): the core's base colour map (BaseColorMap in
+    # rust-core/src/fit/node_group.rs) gives per channel the ratio q(t) = (p(t) − p(0)) / t of the
+    # pigment p the fitted group needs for base colour t, on fit.BASE_COLOR_GRID; the pigment is
+    # Pigment Color + (B·q(B) − F·q(F)) with B = Base Color, F = Fit Base Color and q linear
+    # between the grid's values (q_0 + Σ_k clamp((x − t_{k−1}) / (t_k − t_{k−1}), 0, 1)·Δq_k,
+    # one Map Range per interval; constant beyond the grid), clamped to [0, 1]. Unlinked, B = F:
+    # the bracket is exactly 0 and the pigment is the fitted Pigment Color bit for bit.
+    grid = fitmod.BASE_COLOR_GRID
+    qs = [I[fitmod.map_socket(k)] for k in range(len(grid))]
+    dq = [b.vmath("SUBTRACT", qs[k], qs[k - 1], x=-2600, y=-700 - 40 * k) for k in range(1, len(grid))]
+
+    def mapped(x, y):
+        """x · q(x), q interpolated on the grid (per channel)."""
+        q = qs[0]
+        for k in range(1, len(grid)):
+            mr = b.node("ShaderNodeMapRange", -2500 + 60 * k, y, data_type="FLOAT_VECTOR",
+                        interpolation_type="LINEAR", clamp=True)
+            vec, lo, hi, to_lo, to_hi = [sk for sk in mr.inputs if sk.enabled][:5]
+            b.feed(vec, x)
+            lo.default_value = (grid[k - 1],) * 3
+            hi.default_value = (grid[k],) * 3
+            to_lo.default_value = (0.0, 0.0, 0.0)
+            to_hi.default_value = (1.0, 1.0, 1.0)
+            mr.hide = True
+            fma = b.node("ShaderNodeVectorMath", -2470 + 60 * k, y - 30, operation="MULTIPLY_ADD")
+            b.feed(fma.inputs[0], next(o for o in mr.outputs if o.enabled))
+            b.feed(fma.inputs[1], dq[k - 1])
+            b.feed(fma.inputs[2], q)
+            fma.hide = True
+            q = fma.outputs["Vector"]
+        return b.vmath("MULTIPLY", x, q, x=-1950, y=y)
+
+    shift = b.vmath("SUBTRACT", mapped(I["Base Color"], -700), mapped(I["Fit Base Color"], -760), x=-1900, y=-700)
+    pigment = b.vmath("MAXIMUM", b.vmath("MINIMUM", b.vmath("ADD", I["Pigment Color"], shift, x=-1850, y=-700),
+                                         (1.0, 1.0, 1.0), x=-1800, y=-700), (0.0, 0.0, 0.0), x=-1750, y=-700)
+    # Flake Coverage scales with Flake Density / Fit Flake Density (1 when nothing is linked).
     coverage = b.math("MULTIPLY", I["Flake Coverage"],
                       b.math("DIVIDE", I["Flake Density"], b.math("MAXIMUM", I["Fit Flake Density"], 1e-6,
                                                                   x=-2200, y=-800), x=-2100, y=-800),
@@ -522,8 +566,8 @@ def texture_inputs(material: dict) -> dict:
 
 def artist_inputs(settings) -> dict:
     """The node group inputs set from the material's artist controls (not fitted)."""
-    return {"Orange Peel": float(settings.orange_peel_um),
-            "Orange Peel Wavelength": float(settings.orange_peel_wavelength_mm),
+    return {"Orange Peel": props.core_value(settings, "orange_peel_um"),
+            "Orange Peel Wavelength": props.core_value(settings, "orange_peel_wavelength_mm"),
             "Flake Scale": float(settings.flake_scale)}
 
 
@@ -623,7 +667,8 @@ def apply_fit(mat, material: dict, result, error):
         if sock is None:
             continue
         if isinstance(value, (list, tuple)):
-            sock.default_value = (*[float(v) for v in value[:3]], 1.0)
+            rgb = [float(v) for v in value[:3]]
+            sock.default_value = (*rgb, 1.0) if len(sock.default_value) == 4 else rgb
         else:
             sock.default_value = float(value)
     settings.enabled = True

@@ -3,7 +3,13 @@ render settings (``scene.lacquer``).
 
 The material's PropertyGroup is generated at registration from the core's parameter list
 (``lacquer models``: name, kind, default, range, unit), so the panel, the saved .blend and the
-JSON handed to the renderer use the core's names and units exactly.
+JSON handed to the renderer use the core's names and units exactly — but for angles (Blender's
+ANGLE subtype, radians) and lengths: a parameter in µm, nm or mm (``flake_size_um``, …) is a
+Blender length (``flake_size``: subtype DISTANCE, unit LENGTH, shown in the scene's unit
+system) under the name without the unit suffix, its metres kept in ``flake_size_m`` and
+converted back to the core's unit exactly (see :func:`core_value`). Files saved before
+(properties ``flake_size_um`` … in the core's units) are migrated when they load
+(:func:`migrate_lengths`).
 """
 
 from __future__ import annotations
@@ -196,6 +202,7 @@ def on_load_post(*_args):
 
     LAST_UPGRADE.clear()
     try:
+        LAST_UPGRADE["lengths_migrated"] = migrate_file()
         LAST_UPGRADE.update(nodegroup.upgrade_file())
     except Exception as e:  # noqa: BLE001  (a handler must not break loading the file)
         LAST_UPGRADE["errors"] = [str(e)]
@@ -209,6 +216,117 @@ def _on_artist_change(self, context):
     mat = self.id_data
     if isinstance(mat, bpy.types.Material) and self.enabled:
         nodegroup.write_artist_inputs(mat)
+
+
+#: Metres per core unit, by the suffix of a length's name.
+LENGTH_SUFFIXES = {"_um": 1e-6, "_nm": 1e-9, "_mm": 1e-3}
+
+#: The artist controls that are lengths: old property name (the core's unit) → metres per unit.
+ARTIST_LENGTHS = {"orange_peel_um": 1e-6, "orange_peel_wavelength_mm": 1e-3}
+
+
+def length_scale(name: str):
+    """Metres per unit of a parameter (or artist control) named with a length suffix, else None."""
+    for suffix, scale in LENGTH_SUFFIXES.items():
+        if name.endswith(suffix):
+            return scale
+    return None
+
+
+def prop_name(name: str) -> str:
+    """The ``material.lacquer`` property of a core parameter or artist control: the name
+    without its unit suffix for lengths (stored in metres), the name itself otherwise."""
+    return name[:-3] if length_scale(name) is not None else name
+
+
+def store_key(name: str) -> str:
+    """The ID property holding a length's metres (``flake_size_um`` → ``flake_size_m``)."""
+    return prop_name(name) + "_m"
+
+
+def scene_unit_scale() -> float:
+    """Metres per Blender unit of the current scene (its Unit Scale; 1 without units or a scene)."""
+    try:
+        units = bpy.context.scene.unit_settings
+        return float(units.scale_length) if units.system != "NONE" and units.scale_length > 0 else 1.0
+    except (AttributeError, TypeError):
+        return 1.0
+
+
+def to_core_units(metres: float, scale: float) -> float:
+    """Metres in the core's unit (``scale`` metres per unit), rounded to the shortest decimal
+    within float32 precision (2⁻²³ relative: a value typed in the panel passes through float32),
+    so that 20 µm typed or loaded comes back as 20.0 exactly."""
+    v = float(metres) / scale
+    for digits in range(1, 18):
+        d = float(f"{v:.{digits}g}")
+        if abs(d - v) <= abs(v) * 2.0 ** -23:
+            return d
+    return v
+
+
+def core_value(settings, name: str):
+    """A length parameter or artist control of ``settings`` in the core's unit (µm, nm, mm),
+    from the metres it stores, or from the unmigrated property of an older file."""
+    old = settings.get(name)  # the ID property an older extension saved, if not migrated yet
+    if old is not None:
+        return float(old)  # (a linked material, or a file opened before the extension was enabled)
+    metres = settings.get(store_key(name))
+    if metres is None:
+        return float(_LENGTH_DEFAULTS[name])
+    return to_core_units(metres, length_scale(name))
+
+
+#: Core unit defaults of the lengths (filled by :func:`_length_property`).
+_LENGTH_DEFAULTS: dict = {}
+
+
+def _length_property(name: str, label: str, doc: str, default: float, lo: float, hi: float, update):
+    """A length (``name`` in the core's unit: µm, nm or mm) as a Blender length property.
+
+    Blender shows a LENGTH property's value × the scene's Unit Scale (it holds scene units), so
+    the property reads and writes scene units through ``get``/``set``: the metres are kept in
+    the ID property :func:`store_key` (a double), the panel shows metres in the scene's unit
+    system whatever its Unit Scale, and the core's value does not depend on the scene. Out of
+    range values are clamped to the core's range on writing."""
+    scale = length_scale(name)
+    key = store_key(name)
+    _LENGTH_DEFAULTS[name] = default
+
+    def get(self):
+        return self.get(key, default * scale) / scene_unit_scale()
+
+    def set_(self, value):
+        self[key] = min(max(float(value) * scene_unit_scale(), lo * scale), hi * scale)
+
+    return FloatProperty(name=label, description=doc, default=default * scale, subtype="DISTANCE", unit="LENGTH",
+                         precision=3, get=get, set=set_, update=update)
+
+
+def migrate_lengths(settings) -> list:
+    """Moves lengths saved by extensions before the metric properties (``flake_size_um`` = 20
+    in µm …) to the metric ones (``flake_size``, metres in ``flake_size_m``) and drops the old
+    keys; returns the names moved. Idempotent (the old keys are gone after the first call)."""
+    moved = []
+    names = [p["name"] for p in catalog.params() if length_scale(p["name"]) is not None] + list(ARTIST_LENGTHS)
+    for name in names:
+        if name in settings.keys():
+            value = float(settings[name])
+            del settings[name]
+            settings[store_key(name)] = value * length_scale(name)
+            moved.append(name)
+    return moved
+
+
+def migrate_file() -> dict:
+    """:func:`migrate_lengths` on every local Lacquer material of the open file (load_post)."""
+    out = {}
+    for mat in bpy.data.materials:
+        if mat.library is None and hasattr(mat, "lacquer"):
+            moved = migrate_lengths(mat.lacquer)
+            if moved:
+                out[mat.name] = moved
+    return out
 
 
 def is_angle(p: dict) -> bool:
@@ -229,6 +347,14 @@ def _prop_for(p: dict):
         return FloatProperty(name=label, description=doc, default=math.radians(float(p["default"])),
                              min=math.radians(float(p["min"])), max=math.radians(float(p["max"])),
                              subtype="ANGLE", unit="ROTATION", precision=1, update=_on_param_change)
+    scale = length_scale(name) if kind == "scalar" else None
+    if scale is not None:
+        # A length: metres, shown in the scene's unit system (µm, nm, thou …); material_json
+        # converts back to the core's unit.
+        for u in ("µm", "nm", "mm", unit):
+            label = label.replace(f" ({u})", "") if u else label
+        return _length_property(name, label, doc, float(p["default"]), float(p["min"]), float(p["max"]),
+                                _on_param_change)
     if kind == "scalar":
         lo, hi = float(p["min"]), float(p["max"])
         return FloatProperty(name=label, description=doc, default=float(p["default"]), min=lo, max=hi,
@@ -263,6 +389,9 @@ def material_json(settings) -> dict:
     """The core's material JSON for these settings (every parameter of the model)."""
     out = {"model": catalog.MODEL}
     for p in catalog.params():
+        if length_scale(p["name"]) is not None and p["kind"] == "scalar":
+            out[p["name"]] = core_value(settings, p["name"])
+            continue
         v = getattr(settings, p["name"], None)
         if v is None:
             v = p["default"]
@@ -290,13 +419,18 @@ def load_material_json(settings, material: dict) -> None:
                     v = [v, v, v]
                 elif is_angle(p):
                     v = math.radians(float(v))
+                elif length_scale(p["name"]) is not None and p["kind"] == "scalar":
+                    settings[store_key(p["name"])] = float(v) * length_scale(p["name"])
+                    if p["name"] in settings.keys():
+                        del settings[p["name"]]  # an unmigrated old value would win
+                    continue
                 setattr(settings, p["name"], v)
     finally:
         _loading = False
 
 
 def make_paint_class():
-    ann = {p["name"]: _prop_for(p) for p in catalog.params()}
+    ann = {prop_name(p["name"]): _prop_for(p) for p in catalog.params()}
     ann.update(
         enabled=BoolProperty(name="Lacquer Paint", description="This material is a Lacquer paint", default=False),
         preset=StringProperty(name="Preset", description="The preset the parameters came from", default=""),
@@ -311,13 +445,13 @@ def make_paint_class():
         # Artist controls: not paint parameters of the core; the node group and LACQUER's export
         # read them (orange peel: rust-core/render/src/perturb.rs; flake scale: the sparkle's
         # surface scale).
-        orange_peel_um=FloatProperty(
-            name="Orange Peel", default=0.0, min=0.0, max=1000.0, soft_max=20.0, precision=2,
-            description="RMS height of the clearcoat's waviness in µm (0 = a perfectly flat coat)",
-            update=_on_artist_change),
-        orange_peel_wavelength_mm=FloatProperty(
-            name="Peel Wavelength", default=3.0, min=0.01, max=1000.0, soft_min=0.1, soft_max=20.0,
-            precision=2, description="Wavelength of the orange peel in mm", update=_on_artist_change),
+        # Lengths (the scene's unit system shows them); core_value gives µm / mm.
+        orange_peel=_length_property(
+            "orange_peel_um", "Orange Peel", "RMS height of the clearcoat's waviness (0 = a perfectly flat coat)",
+            0.0, 0.0, 1000.0, _on_artist_change),
+        orange_peel_wavelength=_length_property(
+            "orange_peel_wavelength_mm", "Peel Wavelength", "Wavelength of the orange peel", 3.0, 0.01, 1000.0,
+            _on_artist_change),
         sparkle_lod=BoolProperty(
             name="Sparkle Level of Detail", default=True, update=_on_artist_change,
             description="In Cycles, fade flake cells into the mean lobe where a pixel covers more cells than "

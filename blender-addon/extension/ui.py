@@ -6,7 +6,7 @@ import json
 
 import bpy
 
-from . import catalog, fit, nodegroup
+from . import catalog, fit, nodegroup, props
 
 
 class MATERIAL_PT_lacquer(bpy.types.Panel):
@@ -37,20 +37,20 @@ class MATERIAL_PT_lacquer(bpy.types.Panel):
             box.label(text=title)
             col = box.column(align=True)
             for name in names:
-                if hasattr(s, name):
-                    col.prop(s, name)
+                if hasattr(s, props.prop_name(name)):
+                    col.prop(s, props.prop_name(name))
                     shown.add(name)
         rest = [p["name"] for p in catalog.params() if p["name"] not in shown and p["name"] not in catalog.HIDDEN]
         if rest:
             box = layout.box()
             box.label(text="Other")
             for name in rest:
-                box.prop(s, name)
+                box.prop(s, props.prop_name(name))
         box = layout.box()
         box.label(text="Surface (both engines)")
         col = box.column(align=True)
         for name in catalog.ARTIST:
-            col.prop(s, name)
+            col.prop(s, props.prop_name(name))
         box.label(text="Normal maps, bump: connect them to the node's Normal / Coat Normal", icon="INFO")
         box = layout.box()
         box.label(text="Node group fit (Cycles / EEVEE)")

@@ -717,6 +717,54 @@ def _normal_map_image(n=64, waves=4, tilt=0.4):
 TEXTURE_COLORS = ((0.70, 0.12, 0.05), (0.06, 0.22, 0.60))
 
 
+#: Lengths set through the metric properties: property → (metres, the core's name, core units).
+LENGTH_CASES = {"flake_size": (23e-6, "flake_size_um", 23.0), "pearl_size": (17.5e-6, "pearl_size_um", 17.5),
+                "pearl_film": (150e-9, "pearl_film_nm", 150.0),
+                "coat_thickness": (41.3e-6, "coat_thickness_um", 41.3)}
+
+
+def _lengths_smoke(scene, mat, node, export) -> dict:
+    """Lengths are metric properties (DISTANCE / LENGTH) whatever the scene's unit system: set in
+    metres under metric (adaptive) and imperial units, they reach the core's JSON, the LACQUER
+    export and the node group in the core's units unchanged; the scene's units show them."""
+    props = _addon_module("props")
+    saved = {k: getattr(mat.lacquer, k) for k in LENGTH_CASES}
+    saved_peel = (mat.lacquer.orange_peel, mat.lacquer.orange_peel_wavelength)
+    units = scene.unit_settings
+    before = (units.system, units.length_unit, units.scale_length)
+    rep = {"subtypes": {k: [mat.lacquer.bl_rna.properties[k].subtype, mat.lacquer.bl_rna.properties[k].unit]
+                        for k in list(LENGTH_CASES) + ["orange_peel", "orange_peel_wavelength"]},
+           "old_names_gone": [k for _, k, _ in LENGTH_CASES.values() if k in mat.lacquer.bl_rna.properties],
+           "systems": {}}
+    for system, length_unit, scale in (("METRIC", "ADAPTIVE", 1.0), ("METRIC", "MICROMETERS", 1.0),
+                                       ("IMPERIAL", "ADAPTIVE", 1.0), ("METRIC", "CENTIMETERS", 0.01)):
+        units.system, units.length_unit, units.scale_length = system, length_unit, scale
+        # In scene units, as the panel writes them (a typed "23 µm" is 23e-6 / Unit Scale).
+        for k, (metres, _, _) in LENGTH_CASES.items():
+            setattr(mat.lacquer, k, metres / scale)
+        mat.lacquer.orange_peel = 0.75e-6 / scale
+        mat.lacquer.orange_peel_wavelength = 4.5e-3 / scale
+        desc = export.material_desc(mat, export.Report())
+        js = props.material_json(mat.lacquer)
+        rep["systems"][f"{system}/{length_unit}"] = {
+            "json": {core: js[core] for _, core, _ in LENGTH_CASES.values()},
+            "export": {core: desc[core] for _, core, _ in LENGTH_CASES.values()},
+            "expected": {core: v for _, core, v in LENGTH_CASES.values()},
+            "node_flake_size": node.inputs["Flake Size"].default_value,
+            "node_orange_peel": [node.inputs["Orange Peel"].default_value,
+                                 node.inputs["Orange Peel Wavelength"].default_value],
+            # What the panel shows: the property (scene units) × Unit Scale in the unit system.
+            "shown": bpy.utils.units.to_string(system, "LENGTH", mat.lacquer.flake_size * units.scale_length),
+        }
+        rep["systems"][f"{system}/{length_unit}"]["key"] = f"{system}/{length_unit}/{scale:g}"
+    units.system, units.length_unit, units.scale_length = before
+    for k, v in saved.items():
+        setattr(mat.lacquer, k, v)
+    mat.lacquer.orange_peel, mat.lacquer.orange_peel_wavelength = saved_peel
+    rep["restored_flake_size_um"] = props.material_json(mat.lacquer)["flake_size_um"]
+    return rep
+
+
 def _texture_smoke(out, scene, mat, node, export) -> dict:
     """Textured parameters (issue 15 item 3): a two-colour Image Texture (left half, right half
     of the plate's UV map) on the Lacquer node's Base Color renders in LACQUER and Cycles; the
@@ -871,12 +919,12 @@ def artist_smoke(out: str, size: int) -> dict:
     passes("bump")
     tree.links.remove(node.inputs["Normal"].links[0])
     # Orange peel: 50 µm RMS at 8 mm (exaggerated to be measurable at 64², 0.3 mm per pixel).
-    mat.lacquer.orange_peel_um = 50.0
-    mat.lacquer.orange_peel_wavelength_mm = 8.0
+    mat.lacquer.orange_peel = 50e-6
+    mat.lacquer.orange_peel_wavelength = 8e-3
     rep["peel_node_inputs"] = [node.inputs["Orange Peel"].default_value,
                                node.inputs["Orange Peel Wavelength"].default_value]
     passes("peel")
-    mat.lacquer.orange_peel_um = 0.0
+    mat.lacquer.orange_peel = 0.0
     # The orange-peel waves' predicted RMS slope on this plane (the xy plane of the object):
     # A k √(Σ |d_xy|² / K) (each wave's gradient a k cos(·) d, a = A √(2/K)).
     ng = _addon_module("nodegroup")
@@ -895,6 +943,7 @@ def artist_smoke(out: str, size: int) -> dict:
                     "json_deg": _addon_module("props").material_json(mat.lacquer)["flake_orientation_deg"],
                     "preset_deg": catalog.preset("gold_flake_8")["flake_orientation_deg"]}
     rep["fit_text"] = catalog.fit_quality_lines(json.loads(mat.lacquer.fit_error))
+    rep["lengths"] = _lengths_smoke(scene, mat, node, export)
     rep["texture"] = _texture_smoke(out, scene, mat, node, export)
     rep["seconds"] = time.perf_counter() - t
     del np
@@ -1020,13 +1069,23 @@ def editing_smoke(out: str, size: int) -> dict:
     mat.keyframe_insert("lacquer.flake_density", frame=1)
     mat.lacquer.flake_density = 2.5
     mat.keyframe_insert("lacquer.flake_density", frame=11)
+    # A length (a get/set property in scene units over the stored metres) animates too.
+    saved_size = mat.lacquer.flake_size
+    mat.lacquer.flake_size = 15e-6
+    mat.keyframe_insert("lacquer.flake_size", frame=1)
+    mat.lacquer.flake_size = 25e-6
+    mat.keyframe_insert("lacquer.flake_size", frame=11)
+    node = mat.node_tree.nodes["Lacquer Paint"]
     frames = {}
     for f in (1, 11, 6):
         scene.frame_set(f)
         frames[f] = {"density": mat.lacquer.flake_density, "coverage": cov(),
-                     "expected": fitted(mat.lacquer.flake_density)}
+                     "expected": fitted(mat.lacquer.flake_density),
+                     "flake_size_um": props.material_json(mat.lacquer)["flake_size_um"],
+                     "node_flake_size": node.inputs["Flake Size"].default_value}
     rep["frames"] = frames
     mat.animation_data_clear()
+    mat.lacquer.flake_size = saved_size
     scene.frame_set(1)
     # 3. Bad edits keep the previous valid paint (node group and LACQUER's export).
     mat.lacquer.flake_density = 8.0
@@ -1071,11 +1130,27 @@ def editing_smoke(out: str, size: int) -> dict:
     group["lacquer_version"] = nodegroup.NODE_GROUP_VERSION - 1
     expected_cov = cov()
     node.inputs["Flake Coverage"].default_value = 0.99
+    # ... saved by an extension before the metric lengths: flake_size_um / orange_peel_um in µm
+    # (raw ID properties now), no metric properties.
+    for k in ("flake_size", "orange_peel", "orange_peel_wavelength"):
+        if k in mat.lacquer.keys():
+            del mat.lacquer[k]
+    mat.lacquer["flake_size_um"] = 25.0
+    mat.lacquer["orange_peel_um"] = 0.75
+    mat.lacquer["orange_peel_wavelength_mm"] = 4.5
     old = os.path.join(out, "old_group.blend")
     bpy.ops.wm.save_as_mainfile(filepath=old)
     bpy.ops.wm.open_mainfile(filepath=old)
     g = bpy.data.node_groups[nodegroup.GROUP_NAME]
     m = bpy.data.materials[name]
+    js = props.material_json(m.lacquer)
+    rep["lengths_migrated"] = {
+        "flake_size_m": m.lacquer.flake_size, "orange_peel_m": m.lacquer.orange_peel,
+        "orange_peel_wavelength_m": m.lacquer.orange_peel_wavelength,
+        "json_flake_size_um": js["flake_size_um"],
+        "old_keys_left": [k for k in m.lacquer.keys() if k.endswith(("_um", "_mm"))],
+        "node": {k: m.node_tree.nodes["Lacquer Paint"].inputs[k].default_value
+                 for k in ("Flake Size", "Orange Peel", "Orange Peel Wavelength")}}
     rep["load_post"] = {"upgrade": dict(props.LAST_UPGRADE), "version_after": g.get("lacquer_version"),
                         "coverage_after": m.node_tree.nodes["Lacquer Paint"].inputs["Flake Coverage"].default_value,
                         "coverage_expected": expected_cov}
@@ -1269,11 +1344,11 @@ def shot_surface(out, img_dir):
     img, rep["plain"] = _shot_render(scene, "LACQUER", out, "surface_plain")
     panels.append(img)
     # Exaggerated 100× so that it shows at 0.4 mm per pixel (real paint: 0.1–1 µm over 1–10 mm).
-    mat.lacquer.orange_peel_um = 100.0
-    mat.lacquer.orange_peel_wavelength_mm = 6.0
+    mat.lacquer.orange_peel = 100e-6
+    mat.lacquer.orange_peel_wavelength = 6e-3
     img, rep["peel"] = _shot_render(scene, "LACQUER", out, "surface_peel")
     panels.append(img)
-    mat.lacquer.orange_peel_um = 0.0
+    mat.lacquer.orange_peel = 0.0
     tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = _normal_map_image(n=256, waves=24, tilt=0.25)

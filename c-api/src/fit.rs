@@ -11,8 +11,11 @@ use std::ffi::c_char;
 /// `material_json` is a coated_paint material (`{"model": "coated_paint", ...}`), a preset
 /// (`{"preset": "<name>"}`) or a bare preset name. On success writes
 /// `{"inputs": {socket name: value}, "error": {albedo_rms, albedo_max, brdf_rel_rms,
-/// brdf_cos_rms, snr_db, seconds}, "fit": {...}}` to `*out_json` (free it with
-/// `lq_string_free`); colours are `[r, g, b]`. On error leaves `*out_json` untouched and
+/// brdf_cos_rms, snr_db, seconds}, "fit": {...}, "base_color_map": {"base_color": [9 grid
+/// values], "pigment_color": [[r, g, b], ...], "ratio": [[r, g, b], ...],
+/// "interpolation_max"}}` to `*out_json` (free it with `lq_string_free`); colours are
+/// `[r, g, b]`. The base colour map is the Pigment Color a textured Base Color needs
+/// (docs/blender-fit.md). On error leaves `*out_json` untouched and
 /// returns LQ_ERR_NULL, LQ_ERR_INVALID_JSON, LQ_ERR_UNKNOWN_NAME or LQ_ERR_INVALID_MATERIAL
 /// (also for a valid material that is not a coated_paint). Takes about 0.1–2 s.
 ///

@@ -35,6 +35,10 @@ def _check_result(r):
         assert len(c) == 3 and all(0.0 <= v <= 1.0 for v in c)
     assert all(math.isfinite(v) for v in r["error"].values())
     assert r["inputs"]["Flake Coverage"] + r["inputs"]["Pearl Coverage"] <= 1.0
+    # The base colour map (what a textured Base Color becomes in the node group).
+    m = r["base_color_map"]
+    assert m["base_color"] == [k / 8 for k in range(9)]
+    assert len(m["ratio"]) == 9 and all(len(q) == 3 and all(math.isfinite(v) for v in q) for q in m["ratio"])
 
 
 def test_preset_name_dict_json_and_material_agree():

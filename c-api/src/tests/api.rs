@@ -432,6 +432,9 @@ fn fit_node_group_through_the_abi() {
     }
     let core = lacquer_core::fit::node_group::fit_node_group_json("solid_red").unwrap();
     assert_eq!(v["inputs"], serde_json::to_value(&core.inputs).unwrap());
+    // The base colour map (for textured base colours): the core's, on its grid.
+    assert_eq!(v["base_color_map"], serde_json::to_value(&core.base_color_map).unwrap());
+    assert_eq!(v["base_color_map"]["ratio"].as_array().map(Vec::len), Some(9), "{text}");
 }
 
 #[test]
