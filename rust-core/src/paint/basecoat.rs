@@ -75,7 +75,10 @@ impl MetalBase {
             ),
             Some(b) => {
                 let dg = lanes::min(mf.d(h) * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
-                (fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg / (T::c(4.0) * wi.z * wo.z)), lanes::gt(dg, T::c(0.0)))
+                (
+                    fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg / (T::c(4.0) * wi.z * wo.z)),
+                    lanes::gt(dg, T::c(0.0)),
+                )
             }
         };
         Rgb::select(defined & ok, f, Rgb::zero())

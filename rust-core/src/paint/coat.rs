@@ -53,15 +53,15 @@ const ALBEDO_SAMPLES: usize = 1024;
 /// scanned at 60 000 walks: c = 1, 1.5, 1.75, 2, 2.5, 3 give largest errors of 18.1, 8.4, 7.4, 11.1, 18.2, 24.3 %).
 pub const GGX_SLOPE_VARIANCE: f64 = 1.75;
 
-/// The transmission blur of a rough coat of index `ior` and GGX roughness `√alpha2` (see the
+/// The transmission blur of a rough coat of index `ior` and GGX roughness `alpha` (see the
 /// module docs): the variance it adds to a base lobe's `α²` for the inside cosines of the two
 /// directions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TransmissionBlur {
     /// Coat index of refraction η.
     pub ior: f64,
-    /// The coat's `α_c²`.
-    pub alpha2: f64,
+    /// The coat's GGX `α_c`.
+    pub alpha: f64,
 }
 
 impl TransmissionBlur {
@@ -83,7 +83,15 @@ impl TransmissionBlur {
     #[inline(always)]
     #[must_use]
     pub fn one_sided<L: Lanes>(&self, mu_in: L) -> L {
-        L::c(2.0 * GGX_SLOPE_VARIANCE * self.alpha2) * Self::spread(self.ior, mu_in)
+        Self::one_sided_at(self.ior, L::c(self.alpha), mu_in)
+    }
+
+    /// [`TransmissionBlur::one_sided`] for a coat of index `ior` and roughness `alpha` per lane
+    /// (the per-element path, [`super::varying`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn one_sided_at<L: Lanes>(ior: f64, alpha: L, mu_in: L) -> L {
+        L::c(2.0 * GGX_SLOPE_VARIANCE) * (alpha * alpha) * Self::spread(ior, mu_in)
     }
 }
 
@@ -134,8 +142,7 @@ impl Coat {
     /// smooth coat or `ior = 1`, which do not blur).
     #[must_use]
     pub fn transmission_blur(&self) -> Option<TransmissionBlur> {
-        (!self.is_smooth() && self.has_interface())
-            .then_some(TransmissionBlur { ior: self.ior, alpha2: self.roughness * self.roughness })
+        (!self.is_smooth() && self.has_interface()).then_some(TransmissionBlur { ior: self.ior, alpha: self.roughness })
     }
 
     /// True when the coat absorbs.

@@ -818,7 +818,8 @@ mod tests {
                 // Below the one-sided lobe seen from wo (the normalised one).
                 let blur = blurred.blur.unwrap();
                 let m = blurred.metal.as_ref().unwrap();
-                let one = m.eval_with(&m.blurred(blur.one_sided(wo.z)), None, Rgb::from_array(m.f0), m.weight, *wi, *wo);
+                let one =
+                    m.eval_with(&m.blurred(blur.one_sided(wo.z)), None, Rgb::from_array(m.f0), m.weight, *wi, *wo);
                 let ours = m.eval_with(
                     &m.blurred(blur.one_sided(wo.z)),
                     Some(&m.blurred(blur.one_sided(wi.z))),
@@ -876,7 +877,12 @@ mod tests {
                 den += (r[k] / tr).powi(2);
             }
             let err = (num / den).sqrt();
-            eprintln!("θo {theta}°: lobe-shape error {:.2} %, albedo {:.4} vs {:.4}", 100.0 * err, ta / walks as f64, tr / walks as f64);
+            eprintln!(
+                "θo {theta}°: lobe-shape error {:.2} %, albedo {:.4} vs {:.4}",
+                100.0 * err,
+                ta / walks as f64,
+                tr / walks as f64
+            );
             assert!(err < 0.10, "θo {theta}°: lobe-shape error {err}");
         }
     }

@@ -722,7 +722,7 @@ impl VaryingPaint {
     /// of cosine `mu` (as [`TransmissionBlur::one_sided`] with the element's α).
     #[inline(always)]
     fn blur_one_sided<L: Lanes>(&self, e: &Element<L>, mu: L) -> Option<L> {
-        self.blur_ior.map(|eta| L::c(2.0) * e.alpha * e.alpha * TransmissionBlur::spread(eta, mu))
+        self.blur_ior.map(|eta| TransmissionBlur::one_sided_at(eta, e.alpha, mu))
     }
 
     /// Density of the element's basecoat mixture.
