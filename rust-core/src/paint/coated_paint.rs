@@ -47,7 +47,12 @@
 //! Hence: every term is symmetric in (wi, wo) (reciprocal); the albedo is
 //! `E_top + A1 + M ≤ E_top + U ≤ E_top + T = 1` (energy-conserving); and a lossless stack
 //! (white pigment, no absorption) reaches `E_top + U = 1` (no energy lost to the layering).
-//! Approximations: the rough coat's transmission refracts at the macro normal; bounces after
+//! Under a rough coat the basecoat's specular lobes (metal base, flakes) are seen through the
+//! coat's transmission blur ([`super::coat::TransmissionBlur`]: a wider, still normalised and
+//! symmetric lobe; the pigment is unchanged); `f_b` above and the tables are that blurred
+//! basecoat's, `ρ̄` the unblurred one's.
+//! Approximations: the rough coat's transmission refracts at the macro normal (its spread
+//! enters only through the blur of the base's specular lobes); bounces after
 //! the first see the basecoat's mean albedo (and, for an absorbing coat, the mean
 //! transmittance τ̄). The position-free Monte Carlo reference ([`super::position_free_mc`])
 //! measures their cost (`docs/paint-validation.md`): for a smooth coat over a Lambertian base
@@ -56,8 +61,9 @@
 //! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
 //! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
 //! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
-//! for α 0.1–0.3; over a sharp metal base the lobe is not blurred by the rough interface (lobe
-//! shape 5–93 % off for α ≥ 0.1).
+//! for α 0.1–0.3 (1.5–7 % with the blur); over a sharp metal base (α 0.05) the blur brings the
+//! lobe shape from 5–93 % to 1.6–7.2 % off at θo ≤ 40°, but at θo 75° it stays 21–24 % off at
+//! every coat α.
 //!
 //! ## Sparkle
 //! With a surface point and footprint ([`Bxdf::eval_at`]), each flake population's lobe in
