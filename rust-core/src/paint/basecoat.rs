@@ -7,6 +7,7 @@
 //! symmetric in (wi, wo), and the weights sum to at most one, so `f_b` is reciprocal and
 //! energy-conserving when each lobe is.
 
+use super::coat::TransmissionBlur;
 use super::flakes::FlakeLayer;
 use super::pick3;
 use crate::bxdf::BsdfSample;
@@ -38,25 +39,72 @@ impl MetalBase {
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
+    /// The GGX distribution with `added` (per lane) added to `α²`: the base seen through a
+    /// rough coat ([`TransmissionBlur`]).
+    #[inline(always)]
+    pub(crate) fn blurred<T: Lanes>(&self, added: T) -> Microfacet<T> {
+        let a = lanes::sqrt(T::c(self.alpha * self.alpha) + added);
+        Microfacet::new(DistributionKind::Ggx, a, a)
+    }
+
     #[inline(always)]
     pub(crate) fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.eval_with(&self.microfacet::<T>(), None, Rgb::from_array(self.f0), T::c(self.weight), wi, wo)
+    }
+
+    /// The lobe `F D G / (4 cos θi cos θo)` with the distribution `mf`, Schlick's `f0` and the
+    /// weight `weight` (the per-element path passes its own); under a rough coat with `other`
+    /// the smaller of the two lobes' `D G` (the blurred lobes seen from `wo` and from `wi`,
+    /// [`TransmissionBlur`]).
+    #[inline(always)]
+    pub(crate) fn eval_with<T: Lanes>(
+        &self,
+        mf: &Microfacet<T>,
+        other: Option<&Microfacet<T>>,
+        f0: Rgb<T>,
+        weight: T,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+    ) -> Rgb<T> {
         let (h, defined) = half_vector_masked(wi, wo);
-        let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        let f = fresnel::schlick_rgb(wi.dot(h), Rgb::from_array(self.f0))
-            * (T::c(self.weight) * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z));
-        Rgb::select(defined & lanes::gt(g, T::c(0.0)), f, Rgb::zero())
+        let (f, ok) = match other {
+            None => (
+                fresnel::schlick_rgb(wi.dot(h), f0) * (weight * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z)),
+                lanes::gt(g, T::c(0.0)),
+            ),
+            Some(b) => {
+                let dg = lanes::min(mf.d(h) * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
+                (
+                    fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg / (T::c(4.0) * wi.z * wo.z)),
+                    lanes::gt(dg, T::c(0.0)),
+                )
+            }
+        };
+        Rgb::select(defined & ok, f, Rgb::zero())
     }
 
     #[inline(always)]
     pub(crate) fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        Self::pdf_with(&self.microfacet::<T>(), wi, wo)
+    }
+
+    /// Density of sampling `wi` by the visible normals of `mf` seen from `wo`.
+    #[inline(always)]
+    pub(crate) fn pdf_with<T: Lanes>(mf: &Microfacet<T>, wi: Vec3<T>, wo: Vec3<T>) -> T {
         let (h, defined) = half_vector_masked(wi, wo);
-        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
+        keep(defined, mf.visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
     #[inline(always)]
     pub(crate) fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
-        crate::frame::reflect(wo, self.microfacet::<T>().sample_m(wo, u1, u2, true))
+        Self::sample_direction_with(&self.microfacet::<T>(), wo, u1, u2)
+    }
+
+    /// Reflects `wo` about a visible normal of `mf`.
+    #[inline(always)]
+    pub(crate) fn sample_direction_with<T: Lanes>(mf: &Microfacet<T>, wo: Vec3<T>, u1: T, u2: T) -> Vec3<T> {
+        crate::frame::reflect(wo, mf.sample_m(wo, u1, u2, true))
     }
 }
 
@@ -78,6 +126,9 @@ pub struct Basecoat {
     /// The pigment's rough-diffuse lobe: EON (energy-preserving Oren-Nayar, albedo ρ) in place
     /// of Lambert's `ρ/π` (None: Lambert). Set by [`Basecoat::with_rough_pigment`].
     pub rough_pigment: Option<Eon>,
+    /// The rough coat's blur of the specular lobes (metal base, flakes): None for the basecoat
+    /// as it is (under a smooth coat; the reference's walks). Set by [`Basecoat::with_blur`].
+    pub blur: Option<TransmissionBlur>,
     /// Lobe-selection weights: pigment, metal, flakes.
     selection: [f64; 3],
 }
@@ -114,6 +165,7 @@ impl Basecoat {
             metal,
             flakes,
             rough_pigment: None,
+            blur: None,
             selection,
         }
     }
@@ -125,6 +177,15 @@ impl Basecoat {
     #[must_use]
     pub fn with_rough_pigment(mut self, r: f64) -> Self {
         self.rough_pigment = Some(Eon::new(self.pigment, r));
+        self
+    }
+
+    /// The same basecoat seen through a coat with transmission blur `blur` (None: as it is).
+    /// The pigment is unchanged (a diffuse lobe stays diffuse); the metal base's and the
+    /// flakes' lobes are blurred as [`TransmissionBlur`] describes.
+    #[must_use]
+    pub fn with_blur(mut self, blur: Option<TransmissionBlur>) -> Self {
+        self.blur = blur;
         self
     }
 
@@ -152,11 +213,26 @@ impl Basecoat {
     #[must_use]
     pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let mut f = self.pigment_eval(wi, wo);
-        if let Some(m) = &self.metal {
-            f += m.eval(wi, wo);
-        }
-        if let Some(fl) = &self.flakes {
-            f += fl.eval_scaled(wi, wo, metal_scale, pearl_scale);
+        match &self.blur {
+            None => {
+                if let Some(m) = &self.metal {
+                    f += m.eval(wi, wo);
+                }
+                if let Some(fl) = &self.flakes {
+                    f += fl.eval_scaled(wi, wo, metal_scale, pearl_scale);
+                }
+            }
+            Some(b) => {
+                let (at_i, at_o) = (b.one_sided(wi.z), b.one_sided(wo.z));
+                if let Some(m) = &self.metal {
+                    let (a, o) = (m.blurred(at_i), m.blurred(at_o));
+                    f += m.eval_with(&o, Some(&a), Rgb::from_array(m.f0), T::c(m.weight), wi, wo);
+                }
+                if let Some(fl) = &self.flakes {
+                    let (a, o) = (fl.blurred(at_i), fl.blurred(at_o));
+                    f += fl.eval_scaled_with(&o, Some(&a), wi, wo, metal_scale, pearl_scale);
+                }
+            }
         }
         f
     }
@@ -178,11 +254,24 @@ impl Basecoat {
         }
         let total = a + b + c;
         let mut p = a * cosine_hemisphere_pdf(wi.z);
-        if let Some(m) = &self.metal {
-            p += b * m.pdf(wi, wo);
-        }
-        if let Some(f) = &self.flakes {
-            p += c * f.pdf(wi, wo);
+        match &self.blur {
+            None => {
+                if let Some(m) = &self.metal {
+                    p += b * m.pdf(wi, wo);
+                }
+                if let Some(f) = &self.flakes {
+                    p += c * f.pdf(wi, wo);
+                }
+            }
+            Some(blur) => {
+                let added = blur.one_sided(wo.z);
+                if let Some(m) = &self.metal {
+                    p += b * MetalBase::pdf_with(&m.blurred(added), wi, wo);
+                }
+                if let Some(f) = &self.flakes {
+                    p += c * FlakeLayer::pdf_with(&f.blurred(added), wi, wo);
+                }
+            }
         }
         p / total
     }
@@ -209,11 +298,20 @@ impl Basecoat {
         if pigment.any() {
             wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
+        let added = self.blur.map(|b| b.one_sided(wo.z));
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
-            wi = Vec3::select(metal, m.sample_direction(wo, u[1], u[2]), wi);
+            let w = match added {
+                None => m.sample_direction(wo, u[1], u[2]),
+                Some(a) => MetalBase::sample_direction_with(&m.blurred(a), wo, u[1], u[2]),
+            };
+            wi = Vec3::select(metal, w, wi);
         }
         if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
-            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], flake), wi);
+            let w = match added {
+                None => f.sample_direction_masked(wo, u[1], u[2], flake),
+                Some(a) => FlakeLayer::sample_direction_with(f.blurred(a), wo, u[1], u[2], flake),
+            };
+            wi = Vec3::select(flake, w, wi);
         }
         (wi, pick.valid)
     }

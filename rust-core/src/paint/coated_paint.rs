@@ -47,7 +47,12 @@
 //! Hence: every term is symmetric in (wi, wo) (reciprocal); the albedo is
 //! `E_top + A1 + M ≤ E_top + U ≤ E_top + T = 1` (energy-conserving); and a lossless stack
 //! (white pigment, no absorption) reaches `E_top + U = 1` (no energy lost to the layering).
-//! Approximations: the rough coat's transmission refracts at the macro normal; bounces after
+//! Under a rough coat the basecoat's specular lobes (metal base, flakes) are seen through the
+//! coat's transmission blur ([`super::coat::TransmissionBlur`]: a wider, still normalised and
+//! symmetric lobe; the pigment is unchanged); `f_b` above and the tables are that blurred
+//! basecoat's, `ρ̄` the unblurred one's.
+//! Approximations: the rough coat's transmission refracts at the macro normal (its spread
+//! enters only through the blur of the base's specular lobes); bounces after
 //! the first see the basecoat's mean albedo (and, for an absorbing coat, the mean
 //! transmittance τ̄). The position-free Monte Carlo reference ([`super::position_free_mc`])
 //! measures their cost (`docs/paint-validation.md`): for a smooth coat over a Lambertian base
@@ -56,8 +61,9 @@
 //! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
 //! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
 //! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
-//! for α 0.1–0.3; over a sharp metal base the lobe is not blurred by the rough interface (lobe
-//! shape 5–93 % off for α ≥ 0.1).
+//! for α 0.1–0.3 (1.5–7 % with the blur); over a sharp metal base (α 0.05) the blur brings the
+//! lobe shape from 5–93 % to 1.6–7.2 % off at θo ≤ 40°, but at θo 75° it stays 21–24 % off at
+//! every coat α.
 //!
 //! ## Sparkle
 //! With a surface point and footprint ([`Bxdf::eval_at`]), each flake population's lobe in
@@ -351,6 +357,7 @@ impl CoatedPaint {
         } else {
             base
         };
+        let base = base.with_blur(coat.transmission_blur());
         let (single, multiple) = layer_tables(&coat, &base);
         let m_avg = multiple.cosine_average();
         let multiple_norm = m_avg.map(|m| if m > 1e-12 { 1.0 / (std::f64::consts::PI * m) } else { 0.0 });
@@ -374,7 +381,8 @@ impl CoatedPaint {
         &self.coat
     }
 
-    /// The basecoat.
+    /// The basecoat as the layer term sees it: with the rough coat's transmission blur
+    /// ([`Basecoat::blur`]; `basecoat().clone().with_blur(None)` is the basecoat as it is).
     #[must_use]
     pub fn basecoat(&self) -> &Basecoat {
         &self.base
@@ -609,7 +617,11 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
     // An energy-conserving basecoat has ρ̄ ≤ 1; an estimate above it (noise, for a white
     // pigment) would make the bounce series return more than it received.
-    let rho_bar = mean_albedo(base, MEAN_ALBEDO_SAMPLES).map(|r: f64| r.min(1.0));
+    // ρ̄ is the basecoat's as it is (without the coat's transmission blur, which changes the
+    // shape of its specular lobes, not their energy much): the per-element tables
+    // (`super::varying`) share one ρ̄ for every coat roughness.
+    let bare = base.clone().with_blur(None);
+    let rho_bar = mean_albedo(&bare, MEAN_ALBEDO_SAMPLES).map(|r: f64| r.min(1.0));
     let bounce: [f64; 3] = [0, 1, 2].map(|c| {
         let r = tau[c] * tau[c] * rho_bar[c];
         let denom = 1.0 - r * (1.0 - escape);
@@ -762,6 +774,123 @@ mod tests {
         }
         let (one, both) = (film.spectral_rgb(1.0), film.platelet_spectral_rgb(1.0));
         assert!(both[1] > one[1] + 0.1, "platelet {both:?} vs one film {one:?}");
+    }
+
+    /// Issue 17, item 3: the rough coat's transmission blur vanishes as the coat smooths. A
+    /// smooth coat (α = 0) gives the basecoat no blur at all (the old model, bit for bit); at
+    /// α = 0.001 the blurred metal base (α 0.05) and flakes are within 1e-3 of the unblurred
+    /// ones (relative to the largest value; the added `α²` is at most 2·1.75·0.25·1e-6 =
+    /// 8.8e-7 against 2.5e-3, so `D` moves by at most ≈ 7e-4 near the peak; measured 2.8e-4); at
+    /// α 0.2 they are not (asserted > 10 % somewhere, so the test can fail).
+    /// The blurred lobe is reciprocal (asserted 1e-12 relative) and, for fixed `wo'`, below the
+    /// normalised one-sided lobe (asserted pointwise, to 1e-12 relative rounding).
+    #[test]
+    fn transmission_blur_vanishes_as_the_coat_smooths_and_keeps_reciprocity() {
+        let json = |alpha: f64| {
+            format!(
+                r#"{{"model": "coated_paint", "coat_roughness": {alpha}, "flake_density": 8, "base_metallic": 1, "base_roughness": 0.05, "base_color": 0.9, "sparkle": false}}"#
+            )
+        };
+        assert!(paint(&json(0.0)).base.blur.is_none());
+        let mut rng = crate::rng::Pcg32::new(17, 3);
+        let dirs: Vec<(Vec3<f64>, Vec3<f64>)> = (0..400)
+            .map(|_| {
+                let wo = crate::sampling::uniform_hemisphere(rng.uniform(), rng.uniform());
+                // Around the mirror direction (where the sharp lobes are) and anywhere.
+                let m = crate::frame::mirror_z(wo);
+                let j = Vec3::new(0.2 * (rng.uniform() - 0.5), 0.2 * (rng.uniform() - 0.5), 0.0);
+                let wi = if rng.uniform() < 0.5 {
+                    (m + j).normalize()
+                } else {
+                    crate::sampling::uniform_hemisphere(rng.uniform(), rng.uniform())
+                };
+                (wi, wo)
+            })
+            .filter(|(wi, wo)| wi.z > 0.05 && wo.z > 0.05)
+            .collect();
+        for (alpha, limit) in [(0.001, Some(1e-3)), (0.2, None)] {
+            let p = paint(&json(alpha));
+            let blurred = &p.base;
+            let bare = p.base.clone().with_blur(None);
+            let (mut worst, mut scale) = (0.0f64, 0.0f64);
+            for (wi, wo) in &dirs {
+                let (a, b) = (blurred.eval(*wi, *wo), bare.eval(*wi, *wo));
+                scale = scale.max(b.max_channel());
+                worst = worst.max((a - b).max_channel().abs().max((b - a).max_channel().abs()));
+                let r = blurred.eval(*wo, *wi);
+                for c in 0..3 {
+                    assert!((a[c] - r[c]).abs() <= 1e-12 * a[c].abs().max(1e-300), "α {alpha}: {a:?} vs {r:?}");
+                }
+                // Below the one-sided lobe seen from wo (the normalised one).
+                let blur = blurred.blur.unwrap();
+                let m = blurred.metal.as_ref().unwrap();
+                let one =
+                    m.eval_with(&m.blurred(blur.one_sided(wo.z)), None, Rgb::from_array(m.f0), m.weight, *wi, *wo);
+                let ours = m.eval_with(
+                    &m.blurred(blur.one_sided(wo.z)),
+                    Some(&m.blurred(blur.one_sided(wi.z))),
+                    Rgb::from_array(m.f0),
+                    m.weight,
+                    *wi,
+                    *wo,
+                );
+                // (to rounding: the two products are associated differently)
+                assert!(ours.max_channel() <= one.max_channel() * (1.0 + 1e-12), "{ours:?} vs {one:?}");
+            }
+            let rel = worst / scale;
+            eprintln!("coat α {alpha}: largest |f_blur − f| / max f = {rel:.2e}");
+            match limit {
+                Some(l) => assert!(rel < l, "α {alpha}: {rel}"),
+                None => assert!(rel > 0.1, "α {alpha}: the blur should show: {rel}"),
+            }
+        }
+    }
+
+    /// Issue 17, item 3: under a rough coat (α 0.2) the sharp metal base's lobe is blurred as
+    /// the lossless reference's (multiple-scattering interface) is. Lobe-shape error: the
+    /// relative L2 difference of the two lobes normalised to unit albedo over 12 × 6
+    /// equal-solid-angle bins, 100 000 reference walks and analytic samples per view, noise
+    /// floor ≈ 1.5 %. Without the blur: 20.6 % (θo 0°) and 58.7 % (θo 40°) (§8 of
+    /// docs/paint-validation.md, 400 000 walks); with it measured 2.3 % / 6.4 % here.
+    /// Asserted ≤ 10 % (the old model fails both views). 0.25 s in release.
+    #[test]
+    fn rough_coat_blurs_a_sharp_metal_base_as_the_reference() {
+        use crate::paint::position_free_mc::{lobe_bin, PositionFreeMc};
+        let p = paint(
+            r#"{"model": "coated_paint", "coat_roughness": 0.2, "flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": 0.9}"#,
+        );
+        let (n_mu, n_phi, walks) = (12, 6, 100_000);
+        let mc = PositionFreeMc::new(&p);
+        for theta in [0.0f64, 40.0] {
+            let t = theta.to_radians();
+            let wo = Vec3::new(t.sin(), 0.0, t.cos());
+            let (mut r, mut a) = (vec![0.0; n_mu * n_phi], vec![0.0; n_mu * n_phi]);
+            let mut rng = crate::rng::Pcg32::new(0xb1, theta as u64);
+            for _ in 0..walks {
+                if let Some(e) = mc.albedo_walk_exit(wo, &mut rng) {
+                    r[lobe_bin(e.direction, 0.0, n_mu, n_phi)] += e.weight.luminance();
+                }
+                if let Some(s) = p.sample(wo, rng.uniform3()) {
+                    if s.wi.z > 0.0 {
+                        a[lobe_bin(s.wi, 0.0, n_mu, n_phi)] += s.weight.luminance();
+                    }
+                }
+            }
+            let (ta, tr): (f64, f64) = (a.iter().sum(), r.iter().sum());
+            let (mut num, mut den) = (0.0, 0.0);
+            for k in 0..a.len() {
+                num += (a[k] / ta - r[k] / tr).powi(2);
+                den += (r[k] / tr).powi(2);
+            }
+            let err = (num / den).sqrt();
+            eprintln!(
+                "θo {theta}°: lobe-shape error {:.2} %, albedo {:.4} vs {:.4}",
+                100.0 * err,
+                ta / walks as f64,
+                tr / walks as f64
+            );
+            assert!(err < 0.10, "θo {theta}°: lobe-shape error {err}");
+        }
     }
 
     /// No coat (η = 1, no absorption) over a Lambert pigment is exactly Lambert: the layering

@@ -40,6 +40,15 @@ impl FlakeLayer {
         Microfacet::new(DistributionKind::Beckmann, a, a)
     }
 
+    /// The Beckmann distribution with `added` (per lane) added to `α²`: the flakes seen through
+    /// a rough coat ([`super::coat::TransmissionBlur`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn blurred<T: Lanes>(&self, added: T) -> Microfacet<T> {
+        let a = lanes::sqrt(T::c(self.alpha * self.alpha) + added);
+        Microfacet::new(DistributionKind::Beckmann, a, a)
+    }
+
     /// Reflectance of the metallic population at incidence `cos` on a flake.
     #[inline(always)]
     #[must_use]
@@ -79,12 +88,35 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+        self.eval_scaled_with(&self.microfacet::<T>(), None, wi, wo, metal_scale, pearl_scale)
+    }
+
+    /// [`FlakeLayer::eval_scaled`] with the normal distribution `mf`, or under a rough coat
+    /// with `other` the smaller of the two lobes' `D G` (the blurred lobes seen from `wo` and
+    /// from `wi`, [`super::coat::TransmissionBlur`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_scaled_with<T: Lanes>(
+        &self,
+        mf: &Microfacet<T>,
+        other: Option<&Microfacet<T>>,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        metal_scale: T,
+        pearl_scale: T,
+    ) -> Rgb<T> {
         let (h, defined) = half_vector_masked(wi, wo);
-        let mf = self.microfacet::<T>();
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
         let d = mf.d(h);
-        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (d * g / (T::c(4.0) * wi.z * wo.z));
-        Rgb::select(defined & lanes::gt(g, T::c(0.0)), f, Rgb::zero())
+        let (dg, ok) = match other {
+            None => (d * g, lanes::gt(g, T::c(0.0))),
+            Some(b) => {
+                let dg = lanes::min(d * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
+                (dg, lanes::gt(dg, T::c(0.0)))
+            }
+        };
+        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (dg / (T::c(4.0) * wi.z * wo.z));
+        Rgb::select(defined & ok, f, Rgb::zero())
     }
 
     /// The mean (footprint → ∞) flake lobe.
@@ -98,8 +130,15 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        Self::pdf_with(&self.microfacet::<T>(), wi, wo)
+    }
+
+    /// Density of sampling `wi` by the visible normals of `mf` seen from `wo`, reflected.
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_with<T: Lanes>(mf: &Microfacet<T>, wi: Vec3<T>, wo: Vec3<T>) -> T {
         let (h, defined) = half_vector_masked(wi, wo);
-        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
+        keep(defined, mf.visible_d(wo, h) * reflection_jacobian(wo, h))
     }
 
     /// Samples a visible flake normal and reflects `wo` about it (may fall below the surface).
@@ -115,8 +154,15 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u1: T, u2: T, active: T::Mask) -> Vec3<T> {
-        let a = T::c(self.alpha);
-        crate::frame::reflect(wo, crate::microfacet::sample_visible_beckmann(a, a, wo, u1, u2, active))
+        Self::sample_direction_with(self.microfacet::<T>(), wo, u1, u2, active)
+    }
+
+    /// [`FlakeLayer::sample_direction_masked`] with the Beckmann distribution `mf`.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_direction_with<T: Lanes>(mf: Microfacet<T>, wo: Vec3<T>, u1: T, u2: T, active: T::Mask) -> Vec3<T> {
+        let (ax, ay) = (mf.alpha_x, mf.alpha_y);
+        crate::frame::reflect(wo, crate::microfacet::sample_visible_beckmann(ax, ay, wo, u1, u2, active))
     }
 
     /// A sample of the mean flake lobe alone.

@@ -182,11 +182,11 @@ impl LobeHistogram {
 }
 
 /// The layer stack of a [`CoatedPaint`] as the reference sees it.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct PositionFreeMc<'a> {
     top: RoughDielectric,
     coat: &'a Coat,
-    base: &'a Basecoat,
+    base: Basecoat,
     /// Interface events before a walk is cut.
     pub max_depth: usize,
     /// Light-side connections (next-event estimation) on; off leaves only basecoat sampling
@@ -208,7 +208,9 @@ impl<'a> PositionFreeMc<'a> {
         Self {
             top: RoughDielectric { eta: coat.ior, alpha: coat.roughness },
             coat,
-            base: paint.basecoat(),
+            // The physical basecoat: the walks cross the rough interface themselves (the
+            // analytic model's transmission blur stands in for that).
+            base: paint.basecoat().clone().with_blur(None),
             max_depth: DEFAULT_MAX_DEPTH,
             light_sampling: true,
             multiple_scattering: true,
@@ -517,7 +519,7 @@ mod tests {
             r#"{"model": "coated_paint", "coat_roughness": 0.3, "flake_density": 8, "base_color": [0.6, 0.3, 0.1], "coat_absorption": [1, 2, 4]}"#,
         );
         let mis = PositionFreeMc::new(&p);
-        let plain = PositionFreeMc { light_sampling: false, ..mis };
+        let plain = PositionFreeMc { light_sampling: false, ..mis.clone() };
         for (k, (ti, to, phi)) in [(20.0, 20.0, PI), (50.0, 10.0, 0.0), (70.0, 70.0, PI)].iter().enumerate() {
             let (wi, wo) = (dir(*ti, *phi), dir(*to, 0.0));
             let a = mis.eval(wi, wo, 40_000, k as u64);

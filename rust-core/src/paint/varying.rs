@@ -31,7 +31,7 @@
 //! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
 
 use super::basecoat::{Basecoat, MetalBase};
-use super::coat::Coat;
+use super::coat::{Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::FlakeLayer;
 use super::pick3;
@@ -312,6 +312,9 @@ pub struct VaryingPaint {
     material_rho: [f64; 3],
     material_c: f64,
     material_alpha: f64,
+    /// The coat's index when its rough transmission blurs the base's specular lobes (as
+    /// [`Coat::transmission_blur`], with the element's α): None for a smooth coat or `η = 1`.
+    blur_ior: Option<f64>,
 }
 
 impl VaryingPaint {
@@ -397,6 +400,7 @@ impl VaryingPaint {
         let pearl_transmission = base.pearl_transmission.clone();
         let mean = |c: [f64; 3]| (c[0] + c[1] + c[2]) / 3.0;
         let pearl_t_sel = pearl_transmission.as_ref().map_or(0.0, |t| mean(t.eval::<f64>(1.0)).powi(2));
+        let blur_ior = (coat.has_interface() && (vary_alpha || !coat.is_smooth())).then_some(eta);
         Self {
             alpha_ln: alphas.iter().map(|a| a.ln()).collect(),
             coat,
@@ -414,6 +418,7 @@ impl VaryingPaint {
             material_rho,
             material_c,
             material_alpha: paint.coat().roughness,
+            blur_ior,
         }
     }
 
@@ -692,20 +697,32 @@ impl VaryingPaint {
                 )
             }
         };
+        let (at_i, at_o) = (self.blur_one_sided(e, wi.z), self.blur_one_sided(e, wo.z));
         if let Some(m) = &self.metal {
-            let (h, defined) = half_vector_masked(wi, wo);
-            let mf = m.microfacet::<L>();
-            let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-            let fm = fresnel::schlick_rgb(wi.dot(h), Rgb::new(e.rho[0], e.rho[1], e.rho[2]))
-                * (e.metal_weight * mf.d(h) * g / (L::c(4.0) * wi.z * wo.z));
-            f += Rgb::select(defined & lanes::gt(g, L::c(0.0)), fm, Rgb::zero());
+            let rho = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
+            f += match (at_i, at_o) {
+                (Some(a), Some(o)) => m.eval_with(&m.blurred(o), Some(&m.blurred(a)), rho, e.metal_weight, wi, wo),
+                _ => m.eval_with(&m.microfacet::<L>(), None, rho, e.metal_weight, wi, wo),
+            };
         }
         if let Some(fl) = &self.flakes {
             if self.pearl_c > 0.0 || lanes::gt(e.c, L::c(0.0)).any() {
-                f += fl.eval_scaled(wi, wo, e.c, L::c(1.0));
+                f += match (at_i, at_o) {
+                    (Some(a), Some(o)) => {
+                        fl.eval_scaled_with(&fl.blurred(o), Some(&fl.blurred(a)), wi, wo, e.c, L::c(1.0))
+                    }
+                    _ => fl.eval_scaled(wi, wo, e.c, L::c(1.0)),
+                };
             }
         }
         f
+    }
+
+    /// What the transmission blur adds to the base lobes' `α²` seen from an inside direction
+    /// of cosine `mu` (as [`TransmissionBlur::one_sided`] with the element's α).
+    #[inline(always)]
+    fn blur_one_sided<L: Lanes>(&self, e: &Element<L>, mu: L) -> Option<L> {
+        self.blur_ior.map(|eta| TransmissionBlur::one_sided_at(eta, e.alpha, mu))
     }
 
     /// Density of the element's basecoat mixture.
@@ -714,13 +731,15 @@ impl VaryingPaint {
         let [a, b, c] = e.base_sel;
         let total = a + b + c;
         let mut p = a * cosine_hemisphere_pdf(wi.z);
+        let added = self.blur_one_sided(e, wo.z);
         if let Some(m) = &self.metal {
-            p += b * m.pdf(wi, wo);
+            p += b * added.map_or_else(|| m.pdf(wi, wo), |a| MetalBase::pdf_with(&m.blurred(a), wi, wo));
         }
         if let Some(f) = &self.flakes {
             let on = lanes::gt(c, L::c(0.0));
             if on.any() {
-                p += keep(on, c * f.pdf(wi, wo));
+                let pf = added.map_or_else(|| f.pdf(wi, wo), |a| FlakeLayer::pdf_with(&f.blurred(a), wi, wo));
+                p += keep(on, c * pf);
             }
         }
         keep(lanes::gt(total, L::c(0.0)), p / total)
@@ -735,11 +754,20 @@ impl VaryingPaint {
         if pigment.any() {
             wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
+        let added = self.blur_one_sided(e, wo.z);
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
-            wi = Vec3::select(metal, m.sample_direction(wo, u[1], u[2]), wi);
+            let w = match added {
+                None => m.sample_direction(wo, u[1], u[2]),
+                Some(a) => MetalBase::sample_direction_with(&m.blurred(a), wo, u[1], u[2]),
+            };
+            wi = Vec3::select(metal, w, wi);
         }
         if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
-            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], flake), wi);
+            let w = match added {
+                None => f.sample_direction_masked(wo, u[1], u[2], flake),
+                Some(a) => FlakeLayer::sample_direction_with(f.blurred(a), wo, u[1], u[2], flake),
+            };
+            wi = Vec3::select(flake, w, wi);
         }
         (wi, pick.valid)
     }
@@ -996,15 +1024,25 @@ fn escape_and_tau(coats: &[Coat]) -> (Vec<f64>, [f64; 3]) {
 
 /// `A1(μ)` and `U(μ) − A1(μ)` of one basecoat component under each coat, their cosine
 /// averages and its mean albedo `ρ̄` (the estimators of `coated_paint::layer_tables`, the
-/// component's own sampler). The coats differ only in roughness, so the basecoat samples are
-/// drawn once for all of them; the `μ` nodes run on the rayon pool.
+/// component's own sampler, seen through each coat's transmission blur; `ρ̄` without it, as
+/// the material's). The coats differ only in roughness: a component without specular lobes
+/// (the pigment, which the blur leaves alone) draws its samples once for all of them. The `μ`
+/// nodes run on the rayon pool.
 fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
     use rayon::prelude::*;
     let n = SAMPLES;
     let coat = &coats[0];
     let points: Vec<[f64; 3]> = (0..n).map(|k| super::hammersley3(k, n)).collect();
-    let rho_bar = super::coated_paint::mean_albedo(base, super::coated_paint::MEAN_ALBEDO_SAMPLES);
+    let bare = base.clone().with_blur(None);
+    let rho_bar = super::coated_paint::mean_albedo(&bare, super::coated_paint::MEAN_ALBEDO_SAMPLES);
     let na = coats.len();
+    let specular = base.metal.is_some() || base.flakes.is_some();
+    // The basecoat each coat sees (one for all when nothing of it blurs).
+    let bases: Vec<Basecoat> = if specular {
+        coats.iter().map(|cj| bare.clone().with_blur(cj.transmission_blur())).collect()
+    } else {
+        vec![bare.clone()]
+    };
     // Per μ node: (A1, U − A1) per coat.
     let per_node: Vec<Vec<([f64; 3], [f64; 3])>> = (0..NODES)
         .into_par_iter()
@@ -1013,20 +1051,24 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
             let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
             let w_in = coat.refract_in(w);
             let a_w = coat.attenuation(w_in.z);
-            let mut up = [0.0; 3];
+            let mut up = vec![[0.0; 3]; na];
             let mut out = vec![[0.0; 3]; na];
-            for u in &points {
-                let Some(s) = base.sample(w_in, *u) else { continue };
-                let a_v = coat.attenuation(s.wi.z);
-                let exit = coat.refract_out(s.wi);
-                for c in 0..3 {
-                    up[c] += s.weight[c] * a_v[c];
-                }
-                if let Some(v) = exit {
-                    for (o, cj) in out.iter_mut().zip(coats) {
-                        let esc = cj.transmittance(v.z);
+            for (b, bj) in bases.iter().enumerate() {
+                // The coats whose light this basecoat's samples carry.
+                let js = if specular { b..b + 1 } else { 0..na };
+                for u in &points {
+                    let Some(s) = bj.sample(w_in, *u) else { continue };
+                    let a_v = coat.attenuation(s.wi.z);
+                    let exit = coat.refract_out(s.wi);
+                    for j in js.clone() {
                         for c in 0..3 {
-                            o[c] += s.weight[c] * a_v[c] * esc;
+                            up[j][c] += s.weight[c] * a_v[c];
+                        }
+                        if let Some(v) = exit {
+                            let esc = coats[j].transmittance(v.z);
+                            for c in 0..3 {
+                                out[j][c] += s.weight[c] * a_v[c] * esc;
+                            }
                         }
                     }
                 }
@@ -1034,8 +1076,8 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
             let norm = n as f64;
             coats
                 .iter()
-                .zip(&out)
-                .map(|(cj, o)| {
+                .zip(out.iter().zip(&up))
+                .map(|(cj, (o, up))| {
                     let t_w = cj.transmittance(mu);
                     let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * o[c] / norm);
                     let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);

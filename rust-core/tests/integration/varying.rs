@@ -220,7 +220,8 @@ fn pigment_only_paint_equals_the_material_exactly() {
 /// difference at f 2.6e-2, pdf 2.0e-2. With independent directions
 /// (`coated_paint::mean_albedo`) the measured max relative difference (floor 1e-3) is f 6.1e-3,
 /// pdf 5.2e-3; asserted 1e-2. Off the α grid's nodes (32 nodes uniform in ln α) the same:
-/// f 6.2e-3, pdf 5.0e-3 measured, asserted 1e-2 (16 nodes uniform in √α and the old ρ̄ gave
+/// f 6.2e-3, pdf 5.0e-3 measured (8.4e-3, 7.3e-3 with the rough coat's transmission blur of
+/// issue 17 item 3, whose tables vary more with α), asserted 1e-2 (16 nodes uniform in √α and the old ρ̄ gave
 /// 6.4e-2, 5.9e-2).
 #[test]
 fn every_element_matches_a_material_built_with_its_parameters() {
@@ -245,7 +246,11 @@ fn every_element_matches_a_material_built_with_its_parameters() {
 /// noise cancels), per term of `f` (relative to |f| + 1e-3) and for the pdf (relative to
 /// |pdf| + 1e-3), f64. With 32 nodes uniform in ln α, measured: top reflection 0 (evaluated
 /// with the element's own α), layer 1.3e-3, multiple scatter 1.1e-3, pdf 1.7e-3 (worst at
-/// α = 0.003; 16 nodes uniform in √α gave 7.5e-2, 5.9e-2, 9.4e-2); asserted 3e-3.
+/// α = 0.003; 16 nodes uniform in √α gave 7.5e-2, 5.9e-2, 9.4e-2); asserted 3e-3 until issue
+/// 17 item 3. Since then the rough coat blurs the base's specular lobes (`paint::coat::
+/// TransmissionBlur`), so the tables depend on α also through the blurred basecoat (which
+/// lobes fall outside the escape cone): measured layer 1.3e-3, multiple scatter 4.2e-3, pdf
+/// 5.0e-3, both worst at α = 0.43 (at α ≤ 0.2: 2.5e-3, 2.1e-3); asserted 6e-3.
 #[test]
 fn alpha_interpolation_error_against_fixed_alpha_tables() {
     let off_nodes = [0.0015, 0.003, 0.02, 0.07, 0.2, 0.43];
@@ -283,7 +288,7 @@ fn alpha_interpolation_error_against_fixed_alpha_tables() {
         }
     }
     eprintln!("worst: top {:.2e} layer {:.2e} multiple {:.2e} pdf {:.2e}", worst[0], worst[1], worst[2], worst[3]);
-    assert!(worst.iter().all(|&w| w < 3e-3), "{worst:?}");
+    assert!(worst.iter().all(|&w| w < 6e-3), "{worst:?}");
 }
 
 /// Every SIMD level (and scalar f32) against the f64 reference of the same call, per element:
