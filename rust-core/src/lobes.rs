@@ -26,6 +26,78 @@ pub mod bits {
     /// The value depends on the wavelength beyond its RGB projection (thin film, HTSG):
     /// `Material::eval_spectral` evaluates the physics per wavelength.
     pub const SPECTRAL: u32 = 64;
+    /// The material has a clearcoat top reflection that a lobe mask selects on its own
+    /// (`COAT` in [`SELECTABLE`]); its kind (`GLOSSY`, or `DELTA` for a smooth coat) is in
+    /// [`crate::Material::lobe_parts`].
+    pub const COAT: u32 = 128;
+    /// The bits a lobe mask may hold ([`crate::Material::select_lobes`]): `DIFFUSE` (pigment,
+    /// diffuse terms), `GLOSSY` (glossy lobes other than a coat's top reflection: flakes,
+    /// metallic base, specular lobes) and `COAT` (the clearcoat's top reflection).
+    pub const SELECTABLE: u32 = DIFFUSE | GLOSSY | COAT;
+}
+
+/// A lobe group of a material that a lobe mask selects: `select` the mask bit(s) that enable
+/// it ([`bits::SELECTABLE`]), `kinds` what it is (`DIFFUSE`, `GLOSSY`, `DELTA` bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LobePart {
+    /// The lobe-mask bits that enable this group (all of them must be set for models that
+    /// do not separate their lobes).
+    pub select: u32,
+    /// Its kinds: [`bits::DIFFUSE`], [`bits::GLOSSY`], [`bits::DELTA`].
+    pub kinds: u32,
+}
+
+/// A lobe mask validated against a material ([`crate::Material::select_lobes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LobeSelection {
+    /// Every lobe the material has: the plain calls (no cost, the same results).
+    All,
+    /// None of its lobes: zero values and densities, failed samples.
+    Nothing,
+    /// Some of the lobes of a model that separates them (the mask, restricted to its parts).
+    Some(u32),
+}
+
+/// The lobe groups of a material (see [`LobePart`]).
+pub(crate) fn lobe_parts(m: &Material) -> Vec<LobePart> {
+    if let crate::Model::CoatedPaint(p) = m.model() {
+        return p.lobe_parts().into_iter().map(|(select, kinds)| LobePart { select, kinds }).collect();
+    }
+    let kinds = lobes(m) & (bits::DIFFUSE | bits::GLOSSY | bits::DELTA);
+    let select =
+        if DIFFUSE_ONLY.contains(&m.info().name) { bits::DIFFUSE } else { bits::GLOSSY | (kinds & bits::DIFFUSE) };
+    vec![LobePart { select, kinds: if kinds == 0 { select } else { kinds } }]
+}
+
+/// Validates a lobe mask for a material (see [`crate::Material::select_lobes`]).
+pub(crate) fn select_lobes(m: &Material, mask: u32) -> Result<LobeSelection, crate::Error> {
+    if mask & !bits::SELECTABLE != 0 {
+        return Err(crate::Error::Invalid {
+            param: "lobes".into(),
+            reason: format!(
+                "lobe mask {mask:#x} has bits other than DIFFUSE (1), GLOSSY (2) and COAT (128): {:#x}",
+                mask & !bits::SELECTABLE
+            ),
+        });
+    }
+    let parts = lobe_parts(m);
+    let union = parts.iter().fold(0, |a, p| a | p.select);
+    if mask & union == union {
+        return Ok(LobeSelection::All);
+    }
+    if mask & union == 0 {
+        return Ok(LobeSelection::Nothing);
+    }
+    if m.model().separates_lobes() {
+        return Ok(LobeSelection::Some(mask & union));
+    }
+    Err(crate::Error::Invalid {
+        param: "lobes".into(),
+        reason: format!(
+            "model \"{}\" evaluates its lobes (mask bits {union:#x}) together: a lobe mask must enable all or none of them (got {mask:#x})",
+            m.info().name
+        ),
+    })
 }
 
 /// Models whose only lobe is diffuse.
