@@ -187,6 +187,18 @@ pub(crate) fn lobes(m: &Material) -> u32 {
         "htsg" => out |= bits::DELTA,
         _ => {}
     }
+    if let crate::Model::CoatedPaint(paint) = m.model() {
+        // The groups a lobe mask selects: the coat's top reflection, and a diffuse group that
+        // also holds the multiple-scatter lobe (non-zero over a black pigment with flakes).
+        for (select, _) in paint.lobe_parts() {
+            if select == bits::COAT {
+                out |= bits::COAT;
+            }
+            if select == bits::DIFFUSE {
+                out |= bits::DIFFUSE;
+            }
+        }
+    }
     if ALWAYS_ANISOTROPIC.contains(&name)
         || ANISO_PAIRS.iter().any(|(a, b)| matches!((p.num(a), p.num(b)), (Some(x), Some(y)) if x != y))
         || lafortune_anisotropic(&p)
@@ -288,8 +300,9 @@ mod tests {
         }
     }
 
-    /// A material reports DIFFUSE exactly when its diffuse albedo is non-zero, and pure
-    /// diffuse models report no glossy lobe.
+    /// A material reports DIFFUSE exactly when its diffuse albedo is non-zero (the coated
+    /// paint also over a black pigment when its multiple-scatter lobe is non-zero; none of
+    /// the check sets has one), and pure diffuse models report no glossy lobe.
     #[test]
     fn diffuse_bit_and_albedo() {
         for (name, m) in materials() {
