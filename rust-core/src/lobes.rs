@@ -162,19 +162,7 @@ pub(crate) fn lobes(m: &Material) -> u32 {
         out |= bits::GLOSSY;
     }
     match name {
-        "coated_paint" => {
-            let smooth = p.num("coat_roughness") == Some(0.0);
-            if smooth && p.num("coat_ior").is_some_and(|e| e != 1.0) {
-                out |= bits::DELTA;
-            }
-            // Only the coat is glossy-capable besides flakes, pearls and a metallic base.
-            let other_glossy = p.num("flake_density").unwrap_or(0.0) > 0.0
-                || p.num("pearl_density").unwrap_or(0.0) > 0.0
-                || p.num("base_metallic").unwrap_or(0.0) > 0.0;
-            if smooth && !other_glossy {
-                out &= !bits::GLOSSY;
-            }
-        }
+        // coated_paint: from its lobe groups, below.
         "principled" => {
             let singular = |r: f64| (r * r) * (r * r) <= PRINCIPLED_SINGULAR_ALPHA2;
             let coat = p.num("coat_weight").unwrap_or(0.0) > PRINCIPLED_WEIGHT_CUTOFF
@@ -188,15 +176,12 @@ pub(crate) fn lobes(m: &Material) -> u32 {
         _ => {}
     }
     if let crate::Model::CoatedPaint(paint) = m.model() {
-        // The groups a lobe mask selects: the coat's top reflection, and a diffuse group that
-        // also holds the multiple-scatter lobe (non-zero over a black pigment with flakes).
-        for (select, _) in paint.lobe_parts() {
-            if select == bits::COAT {
-                out |= bits::COAT;
-            }
-            if select == bits::DIFFUSE {
-                out |= bits::DIFFUSE;
-            }
+        // The kinds are those of the lobe groups a mask selects (the built paint's): the coat's
+        // top reflection (none for a coat of index 1), and a diffuse group that also holds the
+        // multiple-scatter lobe (non-zero over a black pigment with flakes).
+        out &= !(bits::DIFFUSE | bits::GLOSSY | bits::DELTA);
+        for (select, kinds) in paint.lobe_parts() {
+            out |= kinds | (select & bits::COAT);
         }
     }
     if ALWAYS_ANISOTROPIC.contains(&name)
