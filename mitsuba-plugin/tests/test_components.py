@@ -44,7 +44,8 @@ def test_component_flags_of_presets(scalar_rgb):
     assert comps(load_lacquer({"model": "cook_torrance"})) == [D | G | FRONT]
     # A textured paint: the per-element calls take no lobe mask, one smooth component.
     tex = mi.load_dict({**lacquer_dict("gold_flake_8"),
-                        "base_color": {"type": "checkerboard", "color0": [0.2, 0.2, 0.2], "color1": [0.8, 0.1, 0.1]}})
+                        "base_color": {"type": "checkerboard", "color0": {"type": "rgb", "value": [0.2, 0.2, 0.2]},
+                                     "color1": {"type": "rgb", "value": [0.8, 0.1, 0.1]}}})
     assert comps(tex) == [D | G | FRONT]
 
 
