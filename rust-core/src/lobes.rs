@@ -60,8 +60,13 @@ pub enum LobeSelection {
 
 /// The lobe groups of a material (see [`LobePart`]).
 pub(crate) fn lobe_parts(m: &Material) -> Vec<LobePart> {
-    if let crate::Model::CoatedPaint(p) = m.model() {
-        return p.lobe_parts().into_iter().map(|(select, kinds)| LobePart { select, kinds }).collect();
+    let split = match m.model() {
+        crate::Model::CoatedPaint(p) => Some(p.lobe_parts()),
+        crate::Model::RoughPlastic(p) => Some(p.lobe_parts()),
+        _ => None,
+    };
+    if let Some(parts) = split.filter(|p| !p.is_empty()) {
+        return parts.into_iter().map(|(select, kinds)| LobePart { select, kinds }).collect();
     }
     let kinds = lobes(m) & (bits::DIFFUSE | bits::GLOSSY | bits::DELTA);
     let select =

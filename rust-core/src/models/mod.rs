@@ -256,7 +256,7 @@ impl Model {
     /// (`Material::select_lobes`); the others take a mask only as all or none of their lobes.
     #[must_use]
     pub fn separates_lobes(&self) -> bool {
-        matches!(self, Model::CoatedPaint(_))
+        matches!(self, Model::CoatedPaint(_) | Model::RoughPlastic(_))
     }
 
     /// [`Model::eval`] restricted to the lobes of `lobes` (a mask `Material::select_lobes`
@@ -269,6 +269,7 @@ impl Model {
         }
         match self {
             Model::CoatedPaint(p) => p.eval_parts(wi, wo, T::one(), T::one(), PaintParts::of(lobes)),
+            Model::RoughPlastic(p) => p.eval_lobes_lanes(wi, wo, [T::one(); 2], lobes),
             _ => self.eval_unchecked(wi, wo),
         }
     }
@@ -282,6 +283,7 @@ impl Model {
         }
         match self {
             Model::CoatedPaint(p) => p.pdf_parts(wi, wo, PaintParts::of(lobes)),
+            Model::RoughPlastic(p) => p.pdf_lobes_lanes(wi, wo, lobes),
             _ => self.pdf_unchecked(wi, wo),
         }
     }
@@ -295,6 +297,7 @@ impl Model {
         }
         let s = match self {
             Model::CoatedPaint(p) => p.sample_parts(wo, u, PaintParts::of(lobes)).into_option(),
+            Model::RoughPlastic(p) => p.sample_lobes_lanes(wo, u, lobes).into_option(),
             _ => self.sample_unchecked(wo, u),
         };
         Self::valid_sample(s?)
@@ -309,6 +312,7 @@ impl Model {
         }
         match self {
             Model::CoatedPaint(p) => p.eval_at_parts(wi, wo, at, PaintParts::of(lobes)),
+            Model::RoughPlastic(_) => self.eval_lobes(wi, wo, lobes),
             _ => self.eval_at_unchecked(wi, wo, at),
         }
     }
@@ -328,6 +332,7 @@ impl Model {
         }
         let s = match self {
             Model::CoatedPaint(p) => p.sample_at_parts(wo, u, at, PaintParts::of(lobes)),
+            Model::RoughPlastic(_) => return self.sample_lobes(wo, u, lobes),
             _ => self.sample_at_unchecked(wo, u, at),
         };
         Self::valid_sample(s?)
