@@ -592,6 +592,7 @@ pub const SAMPLE_FAILED: u32 = 2;
 pub const SAMPLE_INVALID_INPUT: u32 = 4;
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn sample_kernel<L: Lanes, K: LaneKernel>(
     model: &K,
     range: (usize, usize),

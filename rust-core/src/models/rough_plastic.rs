@@ -395,7 +395,7 @@ impl RoughPlastic {
             let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
             let fr = dielectric(wo.dot(h), L::c(self.eta));
             let spec = Rgb::from_array(self.specular) * (fr * dg / (L::c(4.0) * wi.z * wo.z));
-            f = f + Rgb::select(defined, spec, Rgb::zero());
+            f += Rgb::select(defined, spec, Rgb::zero());
         }
         f
     }

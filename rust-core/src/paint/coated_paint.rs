@@ -531,10 +531,10 @@ impl CoatedPaint {
     ) -> Rgb<T> {
         let mut f = if parts.coat { Rgb::splat(self.coat.reflection_eval(wi, wo)) } else { Rgb::zero() };
         if parts.pigment || parts.glossy {
-            f = f + self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
+            f += self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
         }
         if parts.pigment {
-            f = f + self.multiple_term(wi, wo);
+            f += self.multiple_term(wi, wo);
         }
         f
     }
