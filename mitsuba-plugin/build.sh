@@ -9,7 +9,7 @@
 #   4. plugins/build_info.json (the mitsuba / drjit versions and variants built for) and a .pth
 #      file so that `import lacquer_mitsuba` works in the venv.
 # mitsuba-plugin/wheel.sh packs the result into a wheel (dist/lacquer_mitsuba-*.whl).
-# Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb).
+# Options: --no-llvm  (scalar variants only: faster to compile, no llvm_ad_rgb / llvm_ad_spectral).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/.." && pwd)"
@@ -94,7 +94,7 @@ build lacquer_path lacquer_path.cpp
 # What the plugins were built for: register() refuses to load them into another Mitsuba.
 "$py" - "$out_dir/build_info.json" "$with_llvm" <<'PYEOF'
 import importlib.metadata as m, json, sys
-variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb"] if sys.argv[2] == "1" else [])
+variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb", "llvm_ad_spectral"] if sys.argv[2] == "1" else [])
 info = {"mitsuba": m.version("mitsuba"), "drjit": m.version("drjit"), "variants": variants}
 with open(sys.argv[1], "w") as f:
     json.dump(info, f, indent=1)

@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 8
+#define LQ_ABI_VERSION_MINOR 7
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with

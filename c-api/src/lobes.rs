@@ -1,4 +1,4 @@
-//! Lobe selection (ABI 0.8): the lobe groups of a material, and eval / pdf / sample
+//! Lobe selection (ABI 0.7): the lobe groups of a material, and eval / pdf / sample
 //! restricted to a lobe mask, for renderers with per-component queries (Mitsuba's
 //! `BSDFContext::component` / `type_mask`, Diffuse/Glossy render passes, a separate coat
 //! normal).

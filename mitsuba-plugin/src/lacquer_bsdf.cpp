@@ -24,12 +24,16 @@
 // Variants: scalar_rgb, scalar_spectral (materials with spectral physics, LQ_LOBE_SPECTRAL:
 // evaluated by the core at the ray's wavelengths, lq_eval_spectral / lq_sample_spectral; the
 // others: the RGB result upsampled per evaluation with Mitsuba's own sRGB model, Jakob &
-// Hanika 2019, scaled for values above 1) and llvm_ad_rgb
+// Hanika 2019, scaled for values above 1), llvm_ad_rgb and llvm_ad_spectral
 // (batched: the arrays are evaluated, one C ABI call per method call; without a sparkle footprint
 // the structure-of-arrays calls lq_*_soa read the component arrays and mask bytes in place and
 // write into Dr.Jit arrays that become the results; this works only in wavefront mode, i.e.
 // with dr.JitFlag.SymbolicLoops and SymbolicCalls off; traced symbolically the plugin returns
-// zero / an invalid sample and warns once per object, see symbolic_scope()).
+// zero / an invalid sample and warns once per object, see symbolic_scope()). llvm_ad_spectral
+// follows scalar_spectral: LQ_LOBE_SPECTRAL materials through lq_eval_spectral /
+// lq_sample_spectral on the active lanes with their four wavelengths (packed on the host, run
+// in blocks on Dr.Jit's thread pool), every other material through the RGB batched path with
+// the result upsampled per lane as scalar_spectral upsamples it.
 //
 // Parameters (see docs/mitsuba.md):
 //   model      string   a Lacquer model name (`lacquer models`), e.g. "coated_paint"
@@ -57,6 +61,7 @@
 #include <mitsuba/render/bsdf.h>
 #include <mitsuba/render/srgb.h>
 #include <mitsuba/render/texture.h>
+#include <nanothread/nanothread.h>
 
 #include <lacquer.h>
 
@@ -480,6 +485,10 @@ public:
             size_t n = batch_width(si.wi, sample1, sample2, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
+            if constexpr (is_spectral_v<Spectrum>)
+                if (m_lobes & LQ_LOBE_SPECTRAL)
+                    return sample_spectral_lanes(si, sample1, sample2, smooth_on, delta_on, active, n,
+                                                 spatial, uv_b, duv_b);
             if (!spatial) {
                 // Structure of arrays: the library reads the evaluated component arrays and the
                 // mask bytes in place and writes into arrays that become the results.
@@ -529,7 +538,7 @@ public:
                 bs.eta = 1.f;
                 bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(nd_type));
                 bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(nd_comp));
-                UnpolarizedSpectrum value{ Float(w_r), Float(w_g), Float(w_b) };
+                UnpolarizedSpectrum value = rgb_lanes(w_r, w_g, w_b, si);
                 if (m_tint)
                     value *= m_tint->eval(si, active);
                 return { bs, depolarizer<Spectrum>(value) & ok };
@@ -566,8 +575,7 @@ public:
             bs.eta = 1.f;
             bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(nd_type));
             bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(nd_comp));
-            Vector3f w = deinterleave3(weight, n);
-            UnpolarizedSpectrum value(w.x(), w.y(), w.z());
+            UnpolarizedSpectrum value = rgb_interleaved(weight, n, si);
             if (m_tint)
                 value *= m_tint->eval(si, active);
             return { bs, depolarizer<Spectrum>(value) & ok };
@@ -697,6 +705,9 @@ private:
             size_t n = batch_width(si.wi, wo, active);
             Float uv_b, duv_b;
             bool spatial = batch_spatial(si, n, uv_b, duv_b);
+            if constexpr (is_spectral_v<Spectrum>)
+                if (m_lobes & LQ_LOBE_SPECTRAL)
+                    return eval_pdf_spectral_lanes(si, wo, active, n, spatial, uv_b, duv_b, want_f, want_pdf);
             if (!spatial) {
                 // Structure of arrays, in place (see sample()): Lacquer's wi is Mitsuba's wo.
                 FloatJ ax = lanes(wo.x(), n), ay = lanes(wo.y(), n), az = lanes(wo.z(), n),
@@ -739,7 +750,7 @@ private:
                 Spectrum value(0.f);
                 Float pdf_v(0.f);
                 if (want_f) {
-                    UnpolarizedSpectrum v = UnpolarizedSpectrum(Float(f_r), Float(f_g), Float(f_b)) * dr::maximum(wo.z(), 0.f);
+                    UnpolarizedSpectrum v = rgb_lanes(f_r, f_g, f_b, si) * dr::maximum(wo.z(), 0.f);
                     if (m_tint)
                         v *= m_tint->eval(si, active);
                     value = depolarizer<Spectrum>(v) & active;
@@ -768,8 +779,7 @@ private:
             Spectrum value(0.f);
             Float pdf_v(0.f);
             if (want_f) {
-                Vector3f fv = deinterleave3(f, n);
-                UnpolarizedSpectrum v = UnpolarizedSpectrum(fv.x(), fv.y(), fv.z()) * dr::maximum(wo.z(), 0.f);
+                UnpolarizedSpectrum v = rgb_interleaved(f, n, si) * dr::maximum(wo.z(), 0.f);
                 if (m_tint)
                     v *= m_tint->eval(si, active);
                 value = depolarizer<Spectrum>(v) & active;
@@ -961,7 +971,20 @@ private:
                        const float *(&ptr)[5]) const {
         if constexpr (dr::is_jit_v<Float>) {
             if (m_tex_color) {
-                Color3f c = m_tex_color->eval(si, active);
+                Color3f c;
+                if constexpr (is_rgb_v<Spectrum>) {
+                    c = m_tex_color->eval(si, active);
+                } else {
+                    // As in scalar_spectral: the paint takes base_color as RGB (eval_3).
+                    try {
+                        c = m_tex_color->eval_3(si, active);
+                    } catch (const std::exception &e) {
+                        Throw("lacquer: a textured parameter could not be read as RGB / a float in "
+                              "this spectral variant (the paint takes base_color as linear RGB: give a "
+                              "bitmap with raw=\"true\", or render in scalar_rgb / llvm_ad_rgb): %s",
+                              e.what());
+                    }
+                }
                 tex[0] = lanes(c.x(), n);
                 tex[1] = lanes(c.y(), n);
                 tex[2] = lanes(c.z(), n);
@@ -1075,6 +1098,262 @@ private:
                         dr::gather<Float>(all, idx + 2u));
     }
 
+    // ---- llvm_ad_spectral: the batched path at each lane's four wavelengths -------------
+    // Materials with spectral physics (LQ_LOBE_SPECTRAL) go through lq_eval_spectral /
+    // lq_sample_spectral with the active lanes packed on the host (4 wavelengths per lane),
+    // the pdf through lq_pdf_soa (it does not depend on λ), as scalar_spectral does with
+    // lq_pdf_one. Every other material takes the RGB batched path and its result is upsampled
+    // per lane with Mitsuba's sRGB model, exactly as from_rgb does in scalar_spectral, so the
+    // two spectral variants agree.
+
+    /// RGB lanes (evaluated host arrays of width n) as this variant's spectrum: the arrays
+    /// themselves in the RGB variants, Mitsuba's upsampling at si.wavelengths in the spectral.
+    UnpolarizedSpectrum rgb_lanes(FloatJ &r, FloatJ &g, FloatJ &b, const SurfaceInteraction3f &si) const {
+        if constexpr (is_spectral_v<Spectrum>)
+            return upsample_lanes(r.data(), g.data(), b.data(), 1, dr::width(r), si);
+        else {
+            DRJIT_MARK_USED(si);
+            return UnpolarizedSpectrum(Float(r), Float(g), Float(b));
+        }
+    }
+
+    /// Interleaved RGB (3n floats) as this variant's spectrum (see rgb_lanes).
+    UnpolarizedSpectrum rgb_interleaved(const std::vector<float> &rgb, size_t n,
+                                        const SurfaceInteraction3f &si) const {
+        if constexpr (is_spectral_v<Spectrum>)
+            return upsample_lanes(rgb.data(), rgb.data() + 1, rgb.data() + 2, 3, n, si);
+        else {
+            DRJIT_MARK_USED(si);
+            Vector3f v = deinterleave3(rgb, n);
+            return UnpolarizedSpectrum(v.x(), v.y(), v.z());
+        }
+    }
+
+    /// from_rgb per lane (JIT spectral variants): Mitsuba's sRGB model coefficients fetched on
+    /// the host for each lane's RGB scaled to max 1 (srgb_model_fetch is scalar only), then
+    /// evaluated at the lane's wavelengths and scaled back.
+    UnpolarizedSpectrum upsample_lanes(const float *r, const float *g, const float *b, size_t stride,
+                                       size_t n, const SurfaceInteraction3f &si) const {
+        if constexpr (dr::is_jit_v<Float> && is_spectral_v<Spectrum>) {
+            std::vector<float> c0(n), c1(n), c2(n), sc(n);
+            // Mitsuba loads its coefficient table on the first fetch: do that here, on the
+            // calling thread (a failure then raises here, not inside a pool worker).
+            (void) srgb_model_fetch(Color<float, 3>(0.5f, 0.5f, 0.5f));
+            // On Dr.Jit's pool in blocks of 4096 lanes (about 60 ns per lane on one core).
+            spectral_chunks(n, "srgb_model_fetch", [&](size_t begin, size_t end) {
+                for (size_t i = begin; i < end; ++i) {
+                    float x = r[i * stride], y = g[i * stride], z = b[i * stride];
+                    float scale = std::max({ x, y, z });
+                    if (!(scale > 0.f)) {
+                        c0[i] = c1[i] = c2[i] = sc[i] = 0.f;
+                        continue;
+                    }
+                    dr::Array<float, 3> co = srgb_model_fetch(Color<float, 3>(x / scale, y / scale, z / scale));
+                    c0[i] = co.x();
+                    c1[i] = co.y();
+                    c2[i] = co.z();
+                    sc[i] = scale;
+                }
+                return LQ_OK;
+            }, 4096);
+            dr::Array<Float, 3> coeff(dr::load<Float>(c0.data(), n), dr::load<Float>(c1.data(), n),
+                                      dr::load<Float>(c2.data(), n));
+            return dr::load<Float>(sc.data(), n) * srgb_model_eval<UnpolarizedSpectrum>(coeff, si.wavelengths);
+        } else {
+            DRJIT_MARK_USED(r); DRJIT_MARK_USED(g); DRJIT_MARK_USED(b);
+            DRJIT_MARK_USED(stride); DRJIT_MARK_USED(n); DRJIT_MARK_USED(si);
+            return UnpolarizedSpectrum(0.f);
+        }
+    }
+
+    /// Runs `call(begin, end)` (a C ABI call on elements [begin, end)) over k elements in
+    /// blocks of `block` on Dr.Jit's thread pool (nanothread's default pool, whose workers also
+    /// run the LLVM kernels: a pool of our own would compete with them for the cores). The
+    /// spectral calls run on the calling thread, and a handle may be used from many threads at
+    /// once. Throws the first failure that is not a per-element status, with its message
+    /// (lq_last_error is per thread).
+    template <typename Call>
+    static void spectral_chunks(size_t k, const char *what, Call call, size_t block = 512) {
+        if (k == 0)
+            return;
+        size_t blocks = (k + block - 1) / block;
+        std::vector<lq_status> status(blocks, LQ_OK);
+        std::vector<std::string> message(blocks);
+        drjit::parallel_for(drjit::blocked_range<size_t>(0, k, block), [&](drjit::blocked_range<size_t> r) {
+            size_t b = *r.begin() / block;
+            status[b] = call(*r.begin(), *r.end());
+            if (status[b] != LQ_OK)
+                message[b] = lq_last_error();
+        });
+        for (size_t b = 0; b < blocks; ++b)
+            if (status[b] != LQ_OK && status[b] != LQ_ERR_INVALID_DIRECTION && status[b] != LQ_ERR_INVALID_ELEMENT)
+                Throw("lacquer: %s failed (%s): %s", what, lq_status_name(status[b]), message[b]);
+    }
+
+    /// The inputs of one spectral batch call: the active lanes' wavelengths (4 per lane), uv and
+    /// footprint (when spatial), packed on the host in lane order; `lane[j]` is the lane of
+    /// packed element j.
+    struct SpectralPack {
+        std::vector<uint32_t> lane;
+        std::vector<float> lambda, uv, duv;
+    };
+
+    /// Evaluates the wavelengths, the mask and (spatial) uv / footprint of n lanes and packs
+    /// those of the active lanes.
+    void pack_spectral(const SurfaceInteraction3f &si, const Mask &active, size_t n, bool spatial,
+                        Float &uv_b, Float &duv_b, SpectralPack &p) const {
+        if constexpr (dr::is_jit_v<Float> && is_spectral_v<Spectrum>) {
+            FloatJ l[4];
+            for (size_t c = 0; c < 4; ++c)
+                l[c] = lanes(si.wavelengths[c], n);
+            MaskJ act = lanes(active, n);
+            dr::eval(l[0], l[1], l[2], l[3], act);
+            const float *pl[4] = { l[0].data(), l[1].data(), l[2].data(), l[3].data() };
+            const float *uv = spatial ? host(uv_b) : nullptr, *duv = spatial ? host(duv_b) : nullptr;
+            const uint8_t *pm = mask_bytes(act);
+            dr::sync_thread();
+            p.lane.reserve(n);
+            for (size_t i = 0; i < n; ++i)
+                if (pm[i])
+                    p.lane.push_back((uint32_t) i);
+            size_t k = p.lane.size();
+            p.lambda.resize(4 * k);
+            if (spatial) {
+                p.uv.resize(2 * k);
+                p.duv.resize(4 * k);
+            }
+            for (size_t j = 0; j < k; ++j) {
+                size_t i = p.lane[j];
+                for (size_t c = 0; c < 4; ++c)
+                    p.lambda[4 * j + c] = pl[c][i];
+                if (spatial) {
+                    std::memcpy(&p.uv[2 * j], uv + 2 * i, 2 * sizeof(float));
+                    std::memcpy(&p.duv[4 * j], duv + 4 * i, 4 * sizeof(float));
+                }
+            }
+        } else {
+            DRJIT_MARK_USED(si); DRJIT_MARK_USED(active); DRJIT_MARK_USED(n);
+            DRJIT_MARK_USED(spatial); DRJIT_MARK_USED(uv_b); DRJIT_MARK_USED(duv_b); DRJIT_MARK_USED(p);
+        }
+    }
+
+    /// The packed elements' 3-vectors of (x, y, z) lanes, interleaved.
+    static std::vector<float> pack3(const SpectralPack &p, const Vector3f &v, size_t n) {
+        FloatJ x = lanes(v.x(), n), y = lanes(v.y(), n), z = lanes(v.z(), n);
+        dr::eval(x, y, z);
+        const float *px = x.data(), *py = y.data(), *pz = z.data();
+        dr::sync_thread();
+        std::vector<float> out(3 * p.lane.size());
+        for (size_t j = 0; j < p.lane.size(); ++j) {
+            size_t i = p.lane[j];
+            out[3 * j] = px[i];
+            out[3 * j + 1] = py[i];
+            out[3 * j + 2] = pz[i];
+        }
+        return out;
+    }
+
+    /// Four packed values per element back to four lane arrays of width n (0 elsewhere).
+    static UnpolarizedSpectrum unpack4(const SpectralPack &p, const std::vector<float> &v, size_t n) {
+        if constexpr (dr::is_jit_v<Float> && is_spectral_v<Spectrum>) {
+            std::vector<float> out(4 * n, 0.f);
+            for (size_t j = 0; j < p.lane.size(); ++j)
+                for (size_t c = 0; c < 4; ++c)
+                    out[c * n + p.lane[j]] = v[4 * j + c];
+            return UnpolarizedSpectrum(dr::load<Float>(out.data(), n), dr::load<Float>(out.data() + n, n),
+                                       dr::load<Float>(out.data() + 2 * n, n),
+                                       dr::load<Float>(out.data() + 3 * n, n));
+        } else {
+            DRJIT_MARK_USED(p); DRJIT_MARK_USED(v); DRJIT_MARK_USED(n);
+            return UnpolarizedSpectrum(0.f);
+        }
+    }
+
+    /// eval_pdf_impl of llvm_ad_spectral for LQ_LOBE_SPECTRAL materials.
+    std::pair<Spectrum, Float> eval_pdf_spectral_lanes(const SurfaceInteraction3f &si, const Vector3f &wo,
+                                                       Mask active, size_t n, bool spatial, Float &uv_b,
+                                                       Float &duv_b, bool want_f, bool want_pdf) const {
+        lq_material *m = m_material.get();
+        Float pdf_v(0.f);
+        if (want_pdf) {
+            FloatJ ax = lanes(wo.x(), n), ay = lanes(wo.y(), n), az = lanes(wo.z(), n),
+                   bx = lanes(si.wi.x(), n), by = lanes(si.wi.y(), n), bz = lanes(si.wi.z(), n);
+            MaskJ act = lanes(active, n);
+            FloatJ pdf_j = outputs<FloatJ>(n);
+            dr::eval(ax, ay, az, bx, by, bz, act);
+            const float *pax = ax.data(), *pay = ay.data(), *paz = az.data(), *pbx = bx.data(),
+                        *pby = by.data(), *pbz = bz.data();
+            const uint8_t *pa = mask_bytes(act);
+            float *pp = pdf_j.data();
+            dr::sync_thread();
+            lacquer_detail::check(lq_pdf_soa(m, n, pax, pay, paz, pbx, pby, pbz, pa, pp), "lq_pdf_soa");
+            pdf_v = dr::select(active, Float(pdf_j), 0.f);
+        }
+        Spectrum value(0.f);
+        if (want_f) {
+            SpectralPack p;
+            pack_spectral(si, active, n, spatial, uv_b, duv_b, p);
+            std::vector<float> a = pack3(p, wo, n), b = pack3(p, si.wi, n), f(4 * p.lane.size());
+            spectral_chunks(p.lane.size(), "lq_eval_spectral", [&](size_t s, size_t e) {
+                return lq_eval_spectral(m, e - s, &a[3 * s], &b[3 * s], spatial ? &p.uv[2 * s] : nullptr,
+                                        spatial ? &p.duv[4 * s] : nullptr, &p.lambda[4 * s], &f[4 * s]);
+            });
+            UnpolarizedSpectrum v = unpack4(p, f, n) * dr::maximum(wo.z(), 0.f);
+            if (m_tint)
+                v *= m_tint->eval(si, active);
+            value = depolarizer<Spectrum>(v) & active;
+        }
+        return { value, pdf_v };
+    }
+
+    /// sample() of llvm_ad_spectral for LQ_LOBE_SPECTRAL materials.
+    std::pair<BSDFSample3f, Spectrum> sample_spectral_lanes(const SurfaceInteraction3f &si, Float sample1,
+                                                            const Point2f &sample2, bool smooth_on,
+                                                            bool delta_on, Mask active, size_t n,
+                                                            bool spatial, Float &uv_b, Float &duv_b) const {
+        SpectralPack p;
+        pack_spectral(si, active, n, spatial, uv_b, duv_b, p);
+        size_t k = p.lane.size();
+        std::vector<float> wo = pack3(p, si.wi, n), u = pack3(p, Vector3f(sample1, sample2.x(), sample2.y()), n),
+                           wi(3 * k), weight(4 * k), pdf(k);
+        std::vector<uint32_t> flags(k);
+        spectral_chunks(k, "lq_sample_spectral", [&](size_t s, size_t e) {
+            return lq_sample_spectral(m_material.get(), e - s, &wo[3 * s], &u[3 * s],
+                                      spatial ? &p.uv[2 * s] : nullptr, spatial ? &p.duv[4 * s] : nullptr,
+                                      &p.lambda[4 * s], &wi[3 * s], &weight[4 * s], &pdf[s], &flags[s]);
+        });
+        // Back to lanes: inactive lanes are failed samples.
+        std::vector<float> wi_n(3 * n, 0.f), pdf_n(n, 0.f);
+        std::vector<uint32_t> fl_n(n, LQ_SAMPLE_FAILED);
+        for (size_t j = 0; j < k; ++j) {
+            size_t i = p.lane[j];
+            for (size_t c = 0; c < 3; ++c)
+                wi_n[c * n + i] = wi[3 * j + c];
+            pdf_n[i] = pdf[j];
+            fl_n[i] = flags[j];
+        }
+        Vector3f wi_v(dr::load<Float>(wi_n.data(), n), dr::load<Float>(wi_n.data() + n, n),
+                      dr::load<Float>(wi_n.data() + 2 * n, n));
+        Float pdf_v = dr::load<Float>(pdf_n.data(), n);
+        UInt32 fl = dr::load<UInt32>(fl_n.data(), n);
+        Mask delta = (fl & UInt32(LQ_SAMPLE_DELTA)) != 0u;
+        Mask ok = active && (fl & UInt32(LQ_SAMPLE_FAILED)) == 0u && pdf_v > 0.f;
+        if (!delta_on)
+            ok &= !delta;
+        if (!smooth_on)
+            ok &= delta;
+        BSDFSample3f bs = dr::zeros<BSDFSample3f>();
+        bs.wo = dr::select(ok, wi_v, 0.f);
+        bs.pdf = dr::select(ok, pdf_v, 0.f);
+        bs.eta = 1.f;
+        bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_sampled));
+        bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(0u));
+        UnpolarizedSpectrum value = unpack4(p, weight, n);
+        if (m_tint)
+            value *= m_tint->eval(si, active);
+        return { bs, depolarizer<Spectrum>(value) & ok };
+    }
+
     /// uv and footprints of a batch. Lanes without ray differentials (zero partials, e.g.
     /// secondary bounces) get an effectively infinite footprint: the contract's mean lobe,
     /// as the scalar path gives them by calling the functions without uv.
@@ -1082,7 +1361,15 @@ private:
         if (!m_spatial || !si.has_uv_partials())
             return false;
         Mask has = dr::any(si.duv_dx != 0.f) || dr::any(si.duv_dy != 0.f);
-        if (dr::none_or<false>(has))
+        // Decided on the host: dr::none_or<false> is always false for JIT arrays (it never
+        // evaluates), which sent every batch of a sparkle material with partials arrays (all
+        // zero, e.g. Mitsuba's `path`) through the interleaved spatial calls with the huge
+        // footprint, about twice the cost of the mean lobe's SoA calls.
+        MaskJ has_j = lanes(has, n);
+        dr::eval(has_j);
+        const uint8_t *hp = mask_bytes(has_j);
+        dr::sync_thread();
+        if (std::none_of(hp, hp + n, [](uint8_t b) { return b != 0; }))
             return false;
         const float huge = 1e6f;
         uv = interleave(n, { si.uv.x(), si.uv.y() });
@@ -1435,6 +1722,9 @@ extern "C" MI_EXPORT void init_plugin(std::string_view name, mitsuba::PluginRegi
     using FloatL = dr::DiffArray<JitBackend::LLVM, float>;
     fn(name, "llvm_ad_rgb", ObjectType::BSDF, [](void *, const Properties &p) -> ref<Object> {
         return new LacquerBSDF<FloatL, Color<FloatL, 3>>(p);
+    });
+    fn(name, "llvm_ad_spectral", ObjectType::BSDF, [](void *, const Properties &p) -> ref<Object> {
+        return new LacquerBSDF<FloatL, Spectrum<FloatL, 4>>(p);
     });
 #endif
 }

@@ -152,5 +152,8 @@ extern "C" MI_EXPORT void init_plugin(std::string_view name, mitsuba::PluginRegi
     fn(name, "llvm_ad_rgb", ObjectType::Integrator, [](void *, const Properties &p) -> ref<Object> {
         return new LacquerPathIntegrator<FloatL, Color<FloatL, 3>>(p);
     });
+    fn(name, "llvm_ad_spectral", ObjectType::Integrator, [](void *, const Properties &p) -> ref<Object> {
+        return new LacquerPathIntegrator<FloatL, Spectrum<FloatL, 4>>(p);
+    });
 #endif
 }

@@ -54,13 +54,26 @@ def scalar_spectral():
     yield
 
 
-@pytest.fixture
-def llvm_rgb():
+def _llvm_variant(variant):
     if not os.environ.get("DRJIT_LIBLLVM_PATH") and not any(
         os.path.exists(p) for p in ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",)
     ):
         skip_or_fail("no libLLVM for Dr.Jit (test.sh installs libllvm19 and sets DRJIT_LIBLLVM_PATH)")
-    set_variant("llvm_ad_rgb")
+    set_variant(variant)
+
+
+@pytest.fixture
+def llvm_rgb():
+    _llvm_variant("llvm_ad_rgb")
+    yield
+    mi.set_variant("scalar_rgb")
+
+
+@pytest.fixture
+def llvm_spectral():
+    """llvm_ad_spectral with the native plugin (a plugin built without it fails: set_variant
+    asserts register() == "native")."""
+    _llvm_variant("llvm_ad_spectral")
     yield
     mi.set_variant("scalar_rgb")
 
@@ -70,6 +83,24 @@ def lacquer_dict(material):
     if isinstance(material, str):
         return {"type": "lacquer", "preset": material}
     return {"type": "lacquer", "material": json.dumps(material)}
+
+
+def eval_pdf_pairs(bsdf, n):
+    """f·cos and pdf of `bsdf` on n fixed random direction pairs (scalar variants), one row per
+    pair: the colour channels then the pdf. The interaction is zeroed, so uv = (0, 0) for
+    textured materials."""
+    import numpy as np
+
+    ctx, si = mi.BSDFContext(), dr.zeros(mi.SurfaceInteraction3f)
+    rng = np.random.default_rng(7)
+    out = []
+    for _ in range(n):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        a[2], b[2] = abs(a[2]) + 0.05, abs(b[2]) + 0.05
+        si.wi = dr.normalize(mi.Vector3f(*a))
+        f, p = bsdf.eval_pdf(ctx, si, dr.normalize(mi.Vector3f(*b)))
+        out.append(list(np.array(f)) + [float(p)])
+    return np.array(out)
 
 
 def load_lacquer(material):

@@ -269,13 +269,27 @@ def small_scene(bsdf, spp=4):
 
 
 DIFFUSE = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.3, 0.5, 0.7]}}
+
+
+def same_render(a, b):
+    """Two llvm renders of one scene with one seed. Not compared bit for bit: with two or more
+    live BSDFs (a real virtual call) Dr.Jit's renders vary in the last bits between runs, with
+    no lacquer involved: a diffuse scene with a live `roughconductor` differed in 1 of 40
+    llvm_ad_spectral renders by 4.8e-7 (values up to 1.48, a few ulp); with live lacquer
+    objects 1 of 30 llvm_ad_rgb renders differed (129 of 384 pixels), and the bit-for-bit
+    check failed about 1 run in 4 in llvm_ad_spectral (the shared 2-core machine). 1e-5
+    relative is far below any real difference (a lacquer object that was not zero where
+    unused would change whole pixels)."""
+    return np.allclose(a, b, rtol=1e-5, atol=1e-6)
 SYMBOLIC_WARNING = "is being traced inside a symbolic Dr.Jit loop or call"
 
 
-def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_object(llvm_rgb, capfd):
+@pytest.mark.parametrize("jit", ["llvm_rgb", "llvm_spectral"])
+def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_object(request, jit, capfd):
     """A symbolic virtual call traces every live BSDF of the variant: a lacquer object that the
-    rendered scene does not use returns zero there (never selected), so the render is bit for
-    bit the one made without it, and the object warns once (not per render) naming the fix."""
+    rendered scene does not use returns zero there (never selected), so the render is the one
+    made without it (up to the film's atomic-add order, see same_render), and the object warns once (not per render) naming the fix."""
+    request.getfixturevalue(jit)  # llvm_ad_rgb, llvm_ad_spectral: the same rules
     assert dr.flag(dr.JitFlag.SymbolicLoops) and dr.flag(dr.JitFlag.SymbolicCalls)  # Mitsuba's default
     gc.collect()  # no lacquer object of an earlier test alive for the reference
     ref = np.array(mi.render(small_scene(DIFFUSE), seed=5))
@@ -286,17 +300,19 @@ def test_llvm_symbolic_render_of_another_scene_unchanged_by_a_live_lacquer_objec
     mi.render(small_scene(DIFFUSE), seed=6)  # traced again: no second warning
     out = capfd.readouterr()
     log = out.out + out.err
-    assert np.array_equal(img, ref)
+    assert same_render(img, ref), np.abs(img - ref).max()
     assert img.mean() > 0.1  # a real render, not an empty one
     assert log.count('"live_unused_lacquer" (model lambert) ' + SYMBOLIC_WARNING) == 1, log
     assert "lacquer_mitsuba.render" in log and "SymbolicCalls, False" in log, log
     del live
 
 
-def test_llvm_lacquer_scene_symbolic(llvm_rgb, capfd, caplog):
+@pytest.mark.parametrize("jit", ["llvm_rgb", "llvm_spectral"])
+def test_llvm_lacquer_scene_symbolic(request, jit, capfd, caplog):
     """A scene that uses lacquer: lacquer_mitsuba.render in Mitsuba's default (symbolic) flags
-    switches to wavefront mode, says so, and gives bit for bit the wavefront render; plain
+    switches to wavefront mode, says so, and gives the wavefront render (see same_render); plain
     mi.render in symbolic mode renders the lacquer surface black and warns (not silently)."""
+    request.getfixturevalue(jit)
     scene = small_scene(lacquer_dict({"model": "lambert", "albedo": 0.8}))
     scene.shapes()[0].bsdf().set_id("used_lacquer")
     assert lacquer_mitsuba.uses_lacquer(scene) and not lacquer_mitsuba.uses_lacquer(small_scene(DIFFUSE))
@@ -306,7 +322,7 @@ def test_llvm_lacquer_scene_symbolic(llvm_rgb, capfd, caplog):
     assert dr.flag(dr.JitFlag.SymbolicLoops) and dr.flag(dr.JitFlag.SymbolicCalls)  # restored
     with lacquer_mitsuba.wavefront():
         wave = np.array(mi.render(scene, seed=3))
-    assert np.array_equal(img, wave)
+    assert same_render(img, wave), np.abs(img - wave).max()
     # The sphere fills the film's centre: lambert 0.8 under a white environment.
     assert 0.6 < img[6:10, 10:14].mean() < 1.0
     capfd.readouterr()

@@ -17,7 +17,7 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from conftest import lacquer_dict
+from conftest import eval_pdf_pairs, lacquer_dict
 
 
 def canonical(bsdf):
@@ -29,17 +29,7 @@ def canonical(bsdf):
 
 def evals(bsdf, n=48):
     """f·cos and pdf on a fixed set of direction pairs (scalar variant)."""
-    ctx, si = mi.BSDFContext(), mi.SurfaceInteraction3f()
-    rng = np.random.default_rng(7)
-    out = []
-    for _ in range(n):
-        a, b = rng.normal(size=3), rng.normal(size=3)
-        a[2], b[2] = abs(a[2]) + 0.05, abs(b[2]) + 0.05
-        si.wi = dr.normalize(mi.Vector3f(*a))
-        wo = dr.normalize(mi.Vector3f(*b))
-        f, p = bsdf.eval_pdf(ctx, si, wo)
-        out.append(list(np.array(f)) + [float(p)])
-    return np.array(out)
+    return eval_pdf_pairs(bsdf, n)
 
 
 def test_typed_properties_equal_material_json(scalar_rgb):

@@ -167,11 +167,13 @@ def test_lacquer_path_equals_path(request, tmp_path, variant):
     assert_within_noise(stats)
 
 
-@pytest.mark.parametrize("variant", ["scalar_rgb", "llvm_ad_rgb"])
+@pytest.mark.parametrize("variant", ["scalar_rgb", "llvm_ad_rgb", "llvm_ad_spectral"])
 def test_sparkle_with_lacquer_path(request, tmp_path, variant):
     """gold_flake_8 through lacquer_path: with the footprint the camera hits resolve single flakes
-    (blocks far from the mean-lobe image), and the image mean stays the mean lobe's."""
-    request.getfixturevalue("scalar_rgb" if variant == "scalar_rgb" else "llvm_rgb")
+    (blocks far from the mean-lobe image), and the image mean stays the mean lobe's. In
+    llvm_ad_spectral: the footprint path (interleaved lq_*_spatial) upsampled per lane."""
+    request.getfixturevalue({"scalar_rgb": "scalar_rgb", "llvm_ad_rgb": "llvm_rgb",
+                             "llvm_ad_spectral": "llvm_spectral"}[variant])
     wave = variant != "scalar_rgb"
     black = lacquer_dict({"model": "lambert", "albedo": 0.0})
     a = render_with(mitsuba_scene(lacquer_dict("gold_flake_8"), black), "lacquer_path",

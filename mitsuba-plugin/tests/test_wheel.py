@@ -3,7 +3,8 @@
 The wheel is built from the plugins test.sh just built, installed into a scratch folder
 (not the venv, whose .pth points at the source tree), and used from a fresh Python process
 exactly as a user would: import, register(), an XML scene with typed properties and a bitmap
-texture on base_color, a render in scalar_rgb, scalar_spectral and llvm_ad_rgb, and an edit
+texture on base_color, a render in scalar_rgb, scalar_spectral, llvm_ad_rgb and
+llvm_ad_spectral, and an edit
 through mi.traverse that changes the render."""
 
 import os
@@ -24,6 +25,8 @@ def test_build_info_names_this_mitsuba():
     info = lacquer_mitsuba.build_info()
     assert info["mitsuba"] == mi.__version__
     assert {"scalar_rgb", "scalar_spectral"} <= set(info["variants"])
+    # build.sh registers both llvm variants or neither (--no-llvm)
+    assert ("llvm_ad_rgb" in info["variants"]) == ("llvm_ad_spectral" in info["variants"]), info
 
 
 def test_version_mismatch_is_refused_by_name(scalar_rgb, monkeypatch):
@@ -60,7 +63,7 @@ XML = '''<scene version="3.0.0">
   </shape>
   <emitter type="point"><point name="position" x="1" y="-1" z="2"/><rgb name="intensity" value="8"/></emitter>
 </scene>'''
-variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb"] if os.environ.get("DRJIT_LIBLLVM_PATH") else [])
+variants = ["scalar_rgb", "scalar_spectral"] + (["llvm_ad_rgb", "llvm_ad_spectral"] if os.environ.get("DRJIT_LIBLLVM_PATH") else [])
 for v in variants:
     mi.set_variant(v)
     assert lacquer_mitsuba.register(fallback=False) == "native"
@@ -102,5 +105,5 @@ def test_wheel_installs_and_renders(tmp_path):
                        cwd=tmp_path)
     assert r.returncode == 0 and r.stdout.startswith("ok"), r.stdout + r.stderr
     # every variant issue 14's "done when" names (llvm when Dr.Jit has its LLVM, as in CI)
-    want = "ok scalar_rgb scalar_spectral" + (" llvm_ad_rgb" if os.environ.get("DRJIT_LIBLLVM_PATH") else "")
+    want = "ok scalar_rgb scalar_spectral" + (" llvm_ad_rgb llvm_ad_spectral" if os.environ.get("DRJIT_LIBLLVM_PATH") else "")
     assert r.stdout.strip() == want, r.stdout

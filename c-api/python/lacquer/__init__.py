@@ -228,7 +228,7 @@ LOBE_DIFFUSE, LOBE_GLOSSY, LOBE_DELTA = 1, 2, 4
 LOBE_ANISOTROPIC, LOBE_NON_RECIPROCAL, LOBE_SPATIALLY_VARYING = 8, 16, 32
 #: Lobe bit: spectral physics (thin film, HTSG; the C ABI's lq_eval_spectral, ABI 0.6).
 LOBE_SPECTRAL = 64
-#: Lobe-mask bit (ABI 0.8): the clearcoat's top reflection, selected on its own
+#: Lobe-mask bit (ABI 0.7): the clearcoat's top reflection, selected on its own
 #: (:meth:`Material.lobe_parts`, :meth:`Material.eval_pdf_lobes`).
 LOBE_COAT = 128
 #: Every bit a lobe mask may hold: ``LOBE_DIFFUSE | LOBE_GLOSSY | LOBE_COAT``.
@@ -441,7 +441,7 @@ class Material:
         result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
         return self._finish(s, result, strict)
 
-    # ---- lobe selection (ABI 0.8)
+    # ---- lobe selection (ABI 0.7)
 
     def lobe_parts(self) -> list:
         """The lobe groups a lobe mask selects (``lq_material_lobe_part``): a list of

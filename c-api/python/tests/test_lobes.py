@@ -1,4 +1,4 @@
-"""Lobe selection (ABI 0.8) through the Python package: the groups of a paint, the parts
+"""Lobe selection (ABI 0.7) through the Python package: the groups of a paint, the parts
 adding up to the whole, sampling one group, and bad masks."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-//! Lobe selection through the ABI (ABI 0.8): the groups, every lobe call against the core's
+//! Lobe selection through the ABI (ABI 0.7): the groups, every lobe call against the core's
 //! per-lobe answers, the full mask as the plain calls bit for bit, bad masks as a status.
 
 use super::*;

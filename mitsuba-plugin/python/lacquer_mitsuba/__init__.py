@@ -12,7 +12,7 @@ in every process with no ``register()`` call (native variants only; no Python fa
 
 `register()` adds this package's folder to Mitsuba's file resolver, so that Mitsuba finds the
 native plugin ``plugins/lacquer.so`` (built by ``mitsuba-plugin/build.sh``) for the variants it
-was compiled for (scalar_rgb, scalar_spectral, llvm_ad_rgb). For any other variant, or when
+was compiled for (scalar_rgb, scalar_spectral, llvm_ad_rgb, llvm_ad_spectral). For any other variant, or when
 the native plugin was not built, it registers a pure-Python fallback BSDF (``LacquerPyBSDF``)
 that calls the Lacquer C library through the ``lacquer`` ctypes package, if that is installed.
 
@@ -34,7 +34,7 @@ __all__ = ["register", "install", "uninstall", "mitsuba_plugin_dir", "plugin_dir
            "wavefront", "render", "uses_lacquer", "LacquerError"]
 
 #: Variants the native plugin registers (when built with the llvm variant).
-native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb")
+native_variants = ("scalar_rgb", "scalar_spectral", "llvm_ad_rgb", "llvm_ad_spectral")
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 

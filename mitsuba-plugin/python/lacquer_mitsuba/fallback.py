@@ -92,7 +92,7 @@ def _property_value(props, key):
         raise RuntimeError(
             f'lacquer: property "{key}" is a texture or object: the Python fallback (variant {mi.variant()}) '
             "takes plain values only; textured base_color, flake_density and coat_roughness need the "
-            "native plugin (scalar_rgb, scalar_spectral, llvm_ad_rgb; docs/mitsuba.md, \"Textures\")")
+            "native plugin (scalar_rgb, scalar_spectral, llvm_ad_rgb, llvm_ad_spectral; docs/mitsuba.md, \"Textures\")")
     a = np.array(v, dtype=np.float64).ravel()
     if a.size == 3:
         return [float(x) for x in a]
