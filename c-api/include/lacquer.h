@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 6
+#define LQ_ABI_VERSION_MINOR 7
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -130,6 +130,18 @@
  * `lq_sample_spectral` carry more than the RGB value upsampled.
  */
 #define LQ_LOBE_SPECTRAL 64
+
+/**
+ * Lobe-mask bit and `lq_material_lobes` bit: the material has a clearcoat top reflection
+ * that a lobe mask selects on its own (its kind, glossy or delta, is in
+ * `lq_material_lobe_part`).
+ */
+#define LQ_LOBE_COAT 128
+
+/**
+ * Every bit a lobe mask may hold: `LQ_LOBE_DIFFUSE | LQ_LOBE_GLOSSY | LQ_LOBE_COAT`.
+ */
+#define LQ_LOBES_SELECTABLE 131
 
 /**
  * Result of every fallible `lq_*` call. `LQ_OK` is 0; every other value is an error, and
@@ -915,15 +927,14 @@ lq_status lq_material_param_json(const lq_material *m,
 /**
  * The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
  * `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL`,
- * `LQ_LOBE_SPATIALLY_VARYING` and `LQ_LOBE_SPECTRAL`, decided by the core from the model and its parameters (no
- * sampling).
+ * `LQ_LOBE_SPATIALLY_VARYING`, `LQ_LOBE_SPECTRAL` and `LQ_LOBE_COAT` (a clearcoat top
+ * reflection a lobe mask selects on its own, see `lq_material_lobe_part`), decided by the
+ * core from the model and its parameters (no sampling).
  *
  * # Safety
  * `m` is NULL or a live handle; `out_lobes` is NULL or writable.
  */
-LQ_MUST_USE
-lq_status lq_material_lobes(const lq_material *m,
-                            uint32_t *out_lobes);
+LQ_MUST_USE lq_status lq_material_lobes(const lq_material *m, uint32_t *out_lobes);
 
 /**
  * The albedo of the material's diffuse (pigment) part, linear Rec.709 RGB (3 floats; zero
@@ -934,6 +945,154 @@ lq_status lq_material_lobes(const lq_material *m,
  * `m` is NULL or a live handle; `out_rgb` is NULL or holds 3 writable floats.
  */
 LQ_MUST_USE lq_status lq_material_diffuse_reflectance(const lq_material *m, float *out_rgb);
+
+/**
+ * The number of lobe groups of a material (what a renderer's components are): up to 3 for
+ * `coated_paint` (pigment, glossy base lobes, coat), 1 for every other model.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; `out_count` is NULL or writable.
+ */
+LQ_MUST_USE lq_status lq_material_lobe_part_count(const lq_material *m, size_t *out_count);
+
+/**
+ * Lobe group `index` (0 ≤ index < `lq_material_lobe_part_count`): `out_select` the lobe-mask
+ * bits that enable it (`LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`, `LQ_LOBE_COAT`; a model that
+ * evaluates its lobes together has one group whose mask bits must all be set), `out_kinds`
+ * what it is (`LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`, `LQ_LOBE_DELTA` bits). An index out of
+ * range is LQ_ERR_INVALID_ARGUMENT.
+ *
+ * # Safety
+ * `m` is NULL or a live handle; the outputs are NULL or writable.
+ */
+LQ_MUST_USE
+lq_status lq_material_lobe_part(const lq_material *m,
+                                size_t index,
+                                uint32_t *out_select,
+                                uint32_t *out_kinds);
+
+/**
+ * `lq_eval_pdf_spatial` restricted to the lobes of the mask `lobes` (see the lobe-mask rules
+ * above): interleaved arrays, `uv`/`duv` NULL (the mean lobe) or per element (sparkle);
+ * `f_rgb` and/or `pdf` may be NULL (not both). `pdf` is the density of `lq_sample_lobes`
+ * with the same mask.
+ *
+ * # Safety
+ * As `lq_eval_spatial`.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_lobes(const lq_material *m,
+                            size_t n,
+                            const float *wi,
+                            const float *wo,
+                            const float *uv,
+                            const float *duv,
+                            uint32_t lobes,
+                            float *f_rgb,
+                            float *pdf);
+
+/**
+ * `lq_sample_spatial` among the lobes of the mask `lobes` (their selection renormalised;
+ * the weight is the selected lobes' `f cos θi / pdf`, the pdf that of `lq_eval_pdf_lobes`).
+ * A mask selecting none of the material's lobes gives failed samples (LQ_SAMPLE_FAILED).
+ *
+ * # Safety
+ * As `lq_sample_spatial`.
+ */
+LQ_MUST_USE
+lq_status lq_sample_lobes(const lq_material *m,
+                          size_t n,
+                          const float *wo,
+                          const float *u,
+                          const float *uv,
+                          const float *duv,
+                          uint32_t lobes,
+                          float *wi,
+                          float *weight_rgb,
+                          float *pdf,
+                          uint32_t *flags);
+
+/**
+ * `lq_eval_pdf_one` restricted to the lobes of the mask `lobes`; `f_rgb` or `pdf` may be
+ * NULL (not both). Inputs are read before outputs are written (arrays may overlap).
+ *
+ * # Safety
+ * As `lq_eval_one`.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_one_lobes(const lq_material *m,
+                                const float *wi,
+                                const float *wo,
+                                uint32_t lobes,
+                                float *f_rgb,
+                                float *pdf);
+
+/**
+ * `lq_sample_one` among the lobes of the mask `lobes` (see `lq_sample_lobes`).
+ *
+ * # Safety
+ * As `lq_sample_one`.
+ */
+LQ_MUST_USE
+lq_status lq_sample_one_lobes(const lq_material *m,
+                              const float *wo,
+                              const float *u,
+                              uint32_t lobes,
+                              float *wi,
+                              float *weight_rgb,
+                              float *pdf,
+                              uint32_t *flags);
+
+/**
+ * `lq_eval_pdf_soa` restricted to the lobes of the mask `lobes`, through the SIMD kernels
+ * (a mask enabling every lobe runs exactly `lq_eval_pdf_soa`). `f_r`, `f_g`, `f_b` (all
+ * three) or `pdf` may be NULL (not both).
+ *
+ * # Safety
+ * As `lq_eval_soa`.
+ */
+LQ_MUST_USE
+lq_status lq_eval_pdf_soa_lobes(const lq_material *m,
+                                size_t n,
+                                const float *wi_x,
+                                const float *wi_y,
+                                const float *wi_z,
+                                const float *wo_x,
+                                const float *wo_y,
+                                const float *wo_z,
+                                const uint8_t *active,
+                                uint32_t lobes,
+                                float *f_r,
+                                float *f_g,
+                                float *f_b,
+                                float *pdf);
+
+/**
+ * `lq_sample_soa` among the lobes of the mask `lobes` (see `lq_sample_lobes`), through the
+ * SIMD kernels.
+ *
+ * # Safety
+ * As `lq_sample_soa`.
+ */
+LQ_MUST_USE
+lq_status lq_sample_soa_lobes(const lq_material *m,
+                              size_t n,
+                              const float *wo_x,
+                              const float *wo_y,
+                              const float *wo_z,
+                              const float *u0,
+                              const float *u1,
+                              const float *u2,
+                              const uint8_t *active,
+                              uint32_t lobes,
+                              float *wi_x,
+                              float *wi_y,
+                              float *wi_z,
+                              float *w_r,
+                              float *w_g,
+                              float *w_b,
+                              float *pdf,
+                              uint32_t *flags);
 
 /**
  * Parses a material: `{"model": "<name>", "<param>": value, ...}` or `{"preset": "<name>"}`.

@@ -25,19 +25,19 @@ pub const LQ_SAMPLE_INVALID_INPUT: u32 = 4;
 /// The same test the core applies before treating a direction as usable: a finite, non-zero
 /// squared length (NaN fails both comparisons).
 #[inline(always)]
-fn usable<T: Real>(w: Vec3<T>) -> bool {
+pub(crate) fn usable<T: Real>(w: Vec3<T>) -> bool {
     let l2 = w.length_squared();
     l2 > T::zero() && l2 <= T::max_value()
 }
 
 /// `x.is_finite()` as one comparison (NaN fails it).
 #[inline(always)]
-fn finite<T: Real>(x: T) -> bool {
+pub(crate) fn finite<T: Real>(x: T) -> bool {
     x.abs() <= T::max_value()
 }
 
 #[inline(always)]
-fn vec3<T: Real>(a: &[T; 3]) -> Vec3<T> {
+pub(crate) fn vec3<T: Real>(a: &[T; 3]) -> Vec3<T> {
     Vec3::new(a[0], a[1], a[2])
 }
 
@@ -58,7 +58,7 @@ fn num<T: Real>(x: T) -> String {
 /// Counts invalid elements and remembers the first of each kind for the message. Empty
 /// (`None`) in the common case, so the hot path carries and drops nothing.
 #[derive(Default)]
-struct Invalid(Option<Box<InvalidDetail>>);
+pub(crate) struct Invalid(Option<Box<InvalidDetail>>);
 
 #[derive(Default)]
 struct InvalidDetail {
@@ -71,7 +71,7 @@ struct InvalidDetail {
 impl Invalid {
     #[cold]
     #[inline(never)]
-    fn direction<T: Real>(&mut self, i: usize, name: &str, w: Vec3<T>) {
+    pub(crate) fn direction<T: Real>(&mut self, i: usize, name: &str, w: Vec3<T>) {
         let d = self.0.get_or_insert_with(Box::default);
         d.directions += 1;
         if d.first_direction.is_none() {
@@ -80,7 +80,7 @@ impl Invalid {
     }
     #[cold]
     #[inline(never)]
-    fn other<T: Real>(&mut self, i: usize, name: &str, v: &[T]) {
+    pub(crate) fn other<T: Real>(&mut self, i: usize, name: &str, v: &[T]) {
         let d = self.0.get_or_insert_with(Box::default);
         d.others += 1;
         if d.first_other.is_none() {
@@ -89,7 +89,7 @@ impl Invalid {
         }
     }
     #[inline]
-    fn finish(self, n: usize) -> Result<(), Failure> {
+    pub(crate) fn finish(self, n: usize) -> Result<(), Failure> {
         match self.0 {
             None => Ok(()),
             Some(d) => Err(d.failure(n)),
@@ -122,15 +122,15 @@ impl InvalidDetail {
 }
 
 /// Optional surface position and footprint of each element (see `lq_eval_spatial`).
-struct Spatial<'a, T> {
-    uv: Option<&'a [[T; 2]]>,
-    duv: Option<&'a [[T; 4]]>,
+pub(crate) struct Spatial<'a, T> {
+    pub(crate) uv: Option<&'a [[T; 2]]>,
+    pub(crate) duv: Option<&'a [[T; 4]]>,
 }
 
 impl<T: Real> Spatial<'_, T> {
     /// True when element `i`'s position and footprint are finite (or absent).
     #[inline(always)]
-    fn check(&self, i: usize, bad: &mut Invalid) -> bool {
+    pub(crate) fn check(&self, i: usize, bad: &mut Invalid) -> bool {
         if let Some(uv) = self.uv {
             if !uv[i].iter().all(|&x| finite(x)) {
                 bad.other(i, "uv", &uv[i]);
@@ -149,7 +149,7 @@ impl<T: Real> Spatial<'_, T> {
     /// The surface point of element `i` when both a position and a footprint were given
     /// (validated first by [`Spatial::check`]); `None` means the mean lobe.
     #[inline(always)]
-    fn point(&self, i: usize) -> Option<SurfacePoint> {
+    pub(crate) fn point(&self, i: usize) -> Option<SurfacePoint> {
         let (uv, duv) = (self.uv?[i], self.duv?[i]);
         Some(SurfacePoint {
             uv: [uv[0].f64(), uv[1].f64()],
@@ -171,7 +171,7 @@ fn eval_elem<T: Real>(m: &Material, i: usize, a: Vec3<T>, o: Vec3<T>, spatial: &
 /// True when element `i`'s directions and spatial inputs are valid; otherwise records why
 /// (the element's outputs are then zero).
 #[inline(always)]
-fn valid<T: Real>(i: usize, a: Vec3<T>, o: Vec3<T>, spatial: &Spatial<T>, bad: &mut Invalid) -> bool {
+pub(crate) fn valid<T: Real>(i: usize, a: Vec3<T>, o: Vec3<T>, spatial: &Spatial<T>, bad: &mut Invalid) -> bool {
     if !usable(a) {
         bad.direction(i, "wi", a);
         false
@@ -429,7 +429,7 @@ impl CoreBatch for f64 {
 }
 
 /// The status and message of a core batch report, worded as the element loop words them.
-fn report_failure<T: Real>(
+pub(crate) fn report_failure<T: Real>(
     n: usize,
     report: lacquer_core::batch::BatchReport,
     offender: impl Fn(usize) -> (&'static str, Vec3<T>),
@@ -444,7 +444,7 @@ fn report_failure<T: Real>(
 }
 
 /// [`report_failure`] for sampling: invalid `wo` directions and non-finite `u`.
-fn report_failure_sample<T: Real>(
+pub(crate) fn report_failure_sample<T: Real>(
     n: usize,
     report: lacquer_core::batch::BatchReport,
     wo: impl Fn(usize) -> Vec3<T>,

@@ -251,8 +251,9 @@ pub unsafe extern "C" fn lq_material_param_json(
 
 /// The kinds of lobes of a material: a bit set of `LQ_LOBE_DIFFUSE`, `LQ_LOBE_GLOSSY`,
 /// `LQ_LOBE_DELTA`, `LQ_LOBE_ANISOTROPIC`, `LQ_LOBE_NON_RECIPROCAL`,
-/// `LQ_LOBE_SPATIALLY_VARYING` and `LQ_LOBE_SPECTRAL`, decided by the core from the model and its parameters (no
-/// sampling).
+/// `LQ_LOBE_SPATIALLY_VARYING`, `LQ_LOBE_SPECTRAL` and `LQ_LOBE_COAT` (a clearcoat top
+/// reflection a lobe mask selects on its own, see `lq_material_lobe_part`), decided by the
+/// core from the model and its parameters (no sampling).
 ///
 /// # Safety
 /// `m` is NULL or a live handle; `out_lobes` is NULL or writable.

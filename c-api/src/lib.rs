@@ -22,6 +22,7 @@ pub mod batch;
 pub mod catalog;
 pub mod fit;
 pub mod introspect;
+pub mod lobes;
 pub mod material;
 pub mod render;
 pub mod status;
@@ -32,6 +33,7 @@ pub use batch::*;
 pub use catalog::*;
 pub use fit::*;
 pub use introspect::*;
+pub use lobes::*;
 pub use material::*;
 pub use render::*;
 pub use status::lq_status;
@@ -44,7 +46,7 @@ use std::ffi::c_char;
 /// shared library's SONAME (`liblacquer.so.0`).
 pub const LQ_ABI_VERSION_MAJOR: u32 = 0;
 /// ABI minor version: incremented when functions or status codes are added.
-pub const LQ_ABI_VERSION_MINOR: u32 = 6;
+pub const LQ_ABI_VERSION_MINOR: u32 = 7;
 /// The ABI version this header describes: `(major << 16) | minor`. Compare with
 /// `lq_abi_version()` at run time: the majors must be equal and the library's minor at least
 /// the header's.

@@ -10,7 +10,12 @@
 //   sample() value = f_r * cos / pdf          lq_sample weight (identical definition)
 //   bs.pdf of a delta sample = probability    lq_sample pdf with LQ_SAMPLE_DELTA (identical)
 //   si.uv, si.duv_dx, si.duv_dy               uv, duv (sparkle), only with ray differentials
-//   component 0: the smooth lobes             lq_material_lobes: LQ_LOBE_DIFFUSE / _GLOSSY
+//   components of a split material            lq_material_lobe_part: one per lobe group
+//     (coated_paint, untextured; RGB path)    (pigment: Diffuse, flakes/metal base: Glossy,
+//                                             coat: Glossy or DeltaReflection); ctx.type_mask /
+//                                             ctx.component -> a lobe mask for the *_lobes calls
+//                                             (every component enabled: the plain calls)
+//   otherwise component 0: the smooth lobes   lq_material_lobes: LQ_LOBE_DIFFUSE / _GLOSSY
 //                                             (+ Anisotropic for LQ_LOBE_ANISOTROPIC)
 //   component 1 (or 0): the mirror lobe       LQ_LOBE_DELTA; LQ_SAMPLE_DELTA samples
 //   NonSymmetric, SpatiallyVarying flags      LQ_LOBE_NON_RECIPROCAL, _SPATIALLY_VARYING
@@ -399,10 +404,27 @@ public:
                                              Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFSample, active);
         BSDFSample3f bs = dr::zeros<BSDFSample3f>();
-        bool smooth_on = smooth_enabled(ctx),
-             delta_on = m_has_delta && ctx.is_enabled(BSDFFlags::DeltaReflection, m_delta_component);
+        // Split materials (one component per lobe group): the context's lobe mask; kAllLobes
+        // (the plain calls) when every component is enabled.
+        uint32_t lobes = kAllLobes;
+        bool smooth_on, delta_on;
+        if (m_split) {
+            lobes = context_lobes(ctx);
+            if (lobes == 0)
+                return { bs, 0.f };
+            if (lobes == m_all_lobes)
+                lobes = kAllLobes;
+            smooth_on = delta_on = true;
+        } else {
+            smooth_on = smooth_enabled(ctx);
+            delta_on = m_has_delta && ctx.is_enabled(BSDFFlags::DeltaReflection, m_delta_component);
+        }
         if (!smooth_on && !delta_on)
             return { bs, 0.f };
+        // The type and component of a non-delta sample (split: of the enabled groups).
+        uint32_t nd_type = m_smooth_sampled, nd_comp = 0;
+        if (m_split)
+            nondelta_component(lobes == kAllLobes ? m_all_lobes : lobes, nd_type, nd_comp);
 
         if constexpr (!dr::is_jit_v<Float>) {
             if (!active)
@@ -413,7 +435,20 @@ public:
             float wo[3] = { si.wi.x(), si.wi.y(), si.wi.z() },
                   u[3] = { sample1, sample2.x(), sample2.y() }, wi[3], weight[3], pdf;
             uint32_t flags = 0;
-            if (textured()) {
+            if (lobes != kAllLobes) {
+                // Some components only (split, untextured, RGB): the lobe calls.
+                if (use_footprint(si)) {
+                    float uv[2], duv[4];
+                    spatial_inputs(si, uv, duv);
+                    lacquer_detail::check(lq_sample_lobes(m_material.get(), 1, wo, u, uv, duv, lobes, wi,
+                                                          weight, &pdf, &flags),
+                                          "lq_sample_lobes");
+                } else {
+                    lacquer_detail::check(
+                        lq_sample_one_lobes(m_material.get(), wo, u, lobes, wi, weight, &pdf, &flags),
+                        "lq_sample_one_lobes");
+                }
+            } else if (textured()) {
                 TexLane t;
                 texture_values(si, active, t);
                 check_varying(lq_sample_varying(m_material.get(), 1, &wo[0], &wo[1], &wo[2], &u[0], &u[1],
@@ -438,8 +473,8 @@ public:
             bs.wo = Vector3f(wi[0], wi[1], wi[2]);
             bs.pdf = pdf;
             bs.eta = 1.f;
-            bs.sampled_type = delta ? +BSDFFlags::DeltaReflection : m_smooth_sampled;
-            bs.sampled_component = delta ? m_delta_component : 0u;
+            bs.sampled_type = delta ? +BSDFFlags::DeltaReflection : nd_type;
+            bs.sampled_component = delta ? m_delta_component : nd_comp;
             UnpolarizedSpectrum value = from_rgb(weight, si);
             if (m_tint)
                 value *= m_tint->eval(si, active);
@@ -476,7 +511,12 @@ public:
                 if (textured())
                     texture_lanes(si, active, n, tex, tp);
                 dr::sync_thread();
-                if (textured())
+                if (lobes != kAllLobes)
+                    lacquer_detail::check(lq_sample_soa_lobes(m_material.get(), n, px, py, pz, p0, p1, p2, pa,
+                                                              lobes, o[0], o[1], o[2], o[3], o[4], o[5], o[6],
+                                                              of),
+                                          "lq_sample_soa_lobes");
+                else if (textured())
                     check_varying(lq_sample_varying(m_material.get(), n, px, py, pz, p0, p1, p2, tp[0], tp[1],
                                                     tp[2], tp[3], tp[4], pa, o[0], o[1], o[2], o[3], o[4],
                                                     o[5], o[6], of),
@@ -496,8 +536,8 @@ public:
                 bs.wo = dr::select(ok, Vector3f(Float(wi_x), Float(wi_y), Float(wi_z)), 0.f);
                 bs.pdf = dr::select(ok, pdf_v, 0.f);
                 bs.eta = 1.f;
-                bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_sampled));
-                bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(0u));
+                bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(nd_type));
+                bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(nd_comp));
                 UnpolarizedSpectrum value = rgb_lanes(w_r, w_g, w_b, si);
                 if (m_tint)
                     value *= m_tint->eval(si, active);
@@ -509,11 +549,18 @@ public:
             std::vector<float> wi(3 * n), weight(3 * n), pdf(n);
             std::vector<uint32_t> flags(n);
             const float *wo_p = host(wo_b), *u_p = host(u_b);
-            lacquer_detail::check(
-                lq_sample_spatial(m_material.get(), n, wo_p, u_p,
-                                  spatial ? host(uv_b) : nullptr, spatial ? host(duv_b) : nullptr,
-                                  wi.data(), weight.data(), pdf.data(), flags.data()),
-                "lq_sample_spatial");
+            if (lobes != kAllLobes)
+                lacquer_detail::check(
+                    lq_sample_lobes(m_material.get(), n, wo_p, u_p, spatial ? host(uv_b) : nullptr,
+                                    spatial ? host(duv_b) : nullptr, lobes, wi.data(), weight.data(),
+                                    pdf.data(), flags.data()),
+                    "lq_sample_lobes");
+            else
+                lacquer_detail::check(
+                    lq_sample_spatial(m_material.get(), n, wo_p, u_p,
+                                      spatial ? host(uv_b) : nullptr, spatial ? host(duv_b) : nullptr,
+                                      wi.data(), weight.data(), pdf.data(), flags.data()),
+                    "lq_sample_spatial");
             Vector3f wi_v = deinterleave3(wi, n);
             Float pdf_v = dr::load<Float>(pdf.data(), n);
             UInt32 fl = dr::load<UInt32>(flags.data(), n);
@@ -526,8 +573,8 @@ public:
             bs.wo = dr::select(ok, wi_v, 0.f);
             bs.pdf = dr::select(ok, pdf_v, 0.f);
             bs.eta = 1.f;
-            bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(m_smooth_sampled));
-            bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(0u));
+            bs.sampled_type = dr::select(delta, UInt32(+BSDFFlags::DeltaReflection), UInt32(nd_type));
+            bs.sampled_component = dr::select(delta, UInt32(m_delta_component), UInt32(nd_comp));
             UnpolarizedSpectrum value = rgb_interleaved(weight, n, si);
             if (m_tint)
                 value *= m_tint->eval(si, active);
@@ -538,25 +585,28 @@ public:
     Spectrum eval(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
                   Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!smooth_enabled(ctx))
+        uint32_t lobes = eval_lobes(ctx);
+        if (lobes == 0)
             return 0.f;
-        return eval_pdf_impl(si, wo, active, true, false).first;
+        return eval_pdf_impl(si, wo, active, true, false, lobes).first;
     }
 
     Float pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si, const Vector3f &wo,
               Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!smooth_enabled(ctx))
+        uint32_t lobes = eval_lobes(ctx);
+        if (lobes == 0)
             return 0.f;
-        return eval_pdf_impl(si, wo, active, false, true).second;
+        return eval_pdf_impl(si, wo, active, false, true, lobes).second;
     }
 
     std::pair<Spectrum, Float> eval_pdf(const BSDFContext &ctx, const SurfaceInteraction3f &si,
                                         const Vector3f &wo, Mask active) const override {
         MI_MASKED_FUNCTION(ProfilerPhase::BSDFEvaluate, active);
-        if (!smooth_enabled(ctx))
+        uint32_t lobes = eval_lobes(ctx);
+        if (lobes == 0)
             return { 0.f, 0.f };
-        return eval_pdf_impl(si, wo, active, true, true);
+        return eval_pdf_impl(si, wo, active, true, true, lobes);
     }
 
     /// The pigment / diffuse albedo from the core (lq_material_diffuse_reflectance), times
@@ -590,8 +640,11 @@ public:
 
 private:
     /// eval (f_r * cos) and/or pdf; `si.wi` is Lacquer's wo, `wo` Lacquer's wi.
+    /// `lobes`: kAllLobes for the plain calls, else the lobe mask of the enabled components
+    /// (split materials: untextured, RGB path) for the *_lobes calls.
     std::pair<Spectrum, Float> eval_pdf_impl(const SurfaceInteraction3f &si, const Vector3f &wo,
-                                             Mask active, bool want_f, bool want_pdf) const {
+                                             Mask active, bool want_f, bool want_pdf,
+                                             uint32_t lobes = kAllLobes) const {
         if constexpr (!dr::is_jit_v<Float>) {
             if (!active)
                 return { 0.f, 0.f };
@@ -601,7 +654,19 @@ private:
             float a[3] = { wo.x(), wo.y(), wo.z() }, b[3] = { si.wi.x(), si.wi.y(), si.wi.z() };
             float f[3] = { 0.f, 0.f, 0.f }, pdf = 0.f;
             lq_material *m = m_material.get();
-            if (textured()) {
+            if (lobes != kAllLobes) {
+                if (use_footprint(si)) {
+                    float uv[2], duv[4];
+                    spatial_inputs(si, uv, duv);
+                    lacquer_detail::check(lq_eval_pdf_lobes(m, 1, a, b, uv, duv, lobes, want_f ? f : nullptr,
+                                                            want_pdf ? &pdf : nullptr),
+                                          "lq_eval_pdf_lobes");
+                } else {
+                    lacquer_detail::check(lq_eval_pdf_one_lobes(m, a, b, lobes, want_f ? f : nullptr,
+                                                                want_pdf ? &pdf : nullptr),
+                                          "lq_eval_pdf_one_lobes");
+                }
+            } else if (textured()) {
                 TexLane t;
                 texture_values(si, active, t);
                 check_varying(lq_eval_pdf_varying(m, 1, &a[0], &a[1], &a[2], &b[0], &b[1], &b[2], t.r(), t.g(),
@@ -668,7 +733,11 @@ private:
                     texture_lanes(si, active, n, tex, tp);
                 dr::sync_thread();
                 lq_material *m = m_material.get();
-                if (textured())
+                if (lobes != kAllLobes)
+                    lacquer_detail::check(lq_eval_pdf_soa_lobes(m, n, pax, pay, paz, pbx, pby, pbz, pa, lobes, pr,
+                                                                pg, pb, pp),
+                                          "lq_eval_pdf_soa_lobes");
+                else if (textured())
                     check_varying(lq_eval_pdf_varying(m, n, pax, pay, paz, pbx, pby, pbz, tp[0], tp[1], tp[2],
                                                       tp[3], tp[4], pa, pr, pg, pb, pp),
                                   "lq_eval_pdf_varying");
@@ -697,7 +766,11 @@ private:
             const float *uv = spatial ? host(uv_b) : nullptr, *duv = spatial ? host(duv_b) : nullptr;
             std::vector<float> f(want_f ? 3 * n : 0), pdf(want_pdf ? n : 0);
             lq_material *m = m_material.get();
-            if (want_f && want_pdf)
+            if (lobes != kAllLobes)
+                lacquer_detail::check(lq_eval_pdf_lobes(m, n, a, b, uv, duv, lobes, want_f ? f.data() : nullptr,
+                                                        want_pdf ? pdf.data() : nullptr),
+                                      "lq_eval_pdf_lobes");
+            else if (want_f && want_pdf)
                 lacquer_detail::check(lq_eval_pdf_spatial(m, n, a, b, uv, duv, f.data(), pdf.data()), "lq_eval_pdf_spatial");
             else if (want_f)
                 lacquer_detail::check(lq_eval_spatial(m, n, a, b, uv, duv, f.data()), "lq_eval_spatial");
@@ -1305,6 +1378,50 @@ private:
         return true;
     }
 
+    /// "Every lobe": the plain C calls (a lobe mask never holds these bits).
+    static constexpr uint32_t kAllLobes = 0xffffffffu;
+
+    /// Split materials: the lobe mask (LQ_LOBE_DIFFUSE / _GLOSSY / _COAT) of the components
+    /// the context enables, as Mitsuba's own multi-lobe BSDFs ask (`ctx.is_enabled(kind, i)`
+    /// per component).
+    uint32_t context_lobes(const BSDFContext &ctx) const {
+        uint32_t mask = 0;
+        for (size_t i = 0; i < m_part_select.size(); ++i) {
+            uint32_t kinds = m_components[i] & (+BSDFFlags::DiffuseReflection | +BSDFFlags::GlossyReflection |
+                                                +BSDFFlags::DeltaReflection);
+            if (ctx.is_enabled((BSDFFlags) kinds, (uint32_t) i))
+                mask |= m_part_select[i];
+        }
+        return mask;
+    }
+
+    /// The lobe argument of eval / pdf / eval_pdf: 0 = nothing enabled, kAllLobes = the plain
+    /// calls (every component of a split material, or the smooth component of another one).
+    uint32_t eval_lobes(const BSDFContext &ctx) const {
+        if (!m_split)
+            return smooth_enabled(ctx) ? kAllLobes : 0u;
+        uint32_t lobes = context_lobes(ctx);
+        return lobes == m_all_lobes ? kAllLobes : lobes;
+    }
+
+    /// Split materials: the sampled type and component of a non-delta sample when the
+    /// groups `lobes` are enabled: exact when one non-delta component is enabled; with
+    /// several, the core does not report which one it chose: the union of their types and
+    /// the first of them.
+    void nondelta_component(uint32_t lobes, uint32_t &type, uint32_t &comp) const {
+        type = 0;
+        comp = 0;
+        bool first = true;
+        for (size_t i = 0; i < m_part_select.size(); ++i) {
+            if (!(lobes & m_part_select[i]) || (m_components[i] & +BSDFFlags::DeltaReflection))
+                continue;
+            type |= m_components[i] & (+BSDFFlags::DiffuseReflection | +BSDFFlags::GlossyReflection);
+            if (first)
+                comp = (uint32_t) i;
+            first = false;
+        }
+    }
+
     /// True when the context enables the smooth component (component 0) through any of its
     /// lobe kinds: a context asking for glossy reflection gets the diffuse + glossy component
     /// (the C ABI evaluates the smooth lobes together).
@@ -1516,6 +1633,40 @@ private:
         m_delta_component = (uint32_t) m_components.size();
         if (m_has_delta)
             m_components.push_back(BSDFFlags::DeltaReflection | BSDFFlags::FrontSide);
+        // One component per lobe group of the core (coated_paint: pigment, glossy base lobes,
+        // coat) when the lobe calls can evaluate them: not for textured paints (the
+        // per-element calls have no lobe mask) nor for spectral physics in spectral variants.
+        size_t parts = 0;
+        lacquer_detail::check(lq_material_lobe_part_count(m_material.get(), &parts), "lq_material_lobe_part_count");
+        bool split = parts > 1 && !textured();
+        if constexpr (is_spectral_v<Spectrum>)
+            if (lobes & LQ_LOBE_SPECTRAL)
+                split = false;
+        m_split = split;
+        m_part_select.clear();
+        m_all_lobes = 0;
+        if (split) {
+            m_components.clear();
+            for (size_t i = 0; i < parts; ++i) {
+                uint32_t select = 0, kinds = 0;
+                lacquer_detail::check(lq_material_lobe_part(m_material.get(), i, &select, &kinds),
+                                      "lq_material_lobe_part");
+                uint32_t flags = +BSDFFlags::FrontSide;
+                if (kinds & LQ_LOBE_DIFFUSE)
+                    flags |= +BSDFFlags::DiffuseReflection;
+                if (kinds & LQ_LOBE_GLOSSY)
+                    flags |= +BSDFFlags::GlossyReflection;
+                if (kinds & LQ_LOBE_DELTA) {
+                    flags |= +BSDFFlags::DeltaReflection;
+                    m_delta_component = (uint32_t) i;
+                }
+                if ((kinds & (LQ_LOBE_DIFFUSE | LQ_LOBE_GLOSSY)) && (lobes & LQ_LOBE_ANISOTROPIC))
+                    flags |= +BSDFFlags::Anisotropic;
+                m_components.push_back(flags);
+                m_part_select.push_back(select);
+                m_all_lobes |= select;
+            }
+        }
         m_flags = 0;
         for (uint32_t c : m_components)
             m_flags |= c;
@@ -1546,6 +1697,11 @@ private:
     float m_diffuse[3] = { 0.f, 0.f, 0.f };
     bool m_footprint = true, m_spatial = false, m_has_smooth = true, m_has_delta = false;
     uint32_t m_smooth_type = 0, m_smooth_sampled = 0, m_delta_component = 1, m_lobes = 0;
+    /// Components = the core's lobe groups (lq_material_lobe_part): their lobe-mask bits, and
+    /// the union of them (the plain calls).
+    bool m_split = false;
+    std::vector<uint32_t> m_part_select;
+    uint32_t m_all_lobes = 0;
 
     MI_TRAVERSE_CB(Base, m_tint, m_tex_color, m_tex_density, m_tex_roughness)
 };

@@ -15,8 +15,9 @@ chi-square check, which passes the presets). The same paints with a 0.1 clearcoa
 normal, oblique and grazing incidence with the default settings below.
 
 Materials with a Dirac lobe (a mirror-smooth clearcoat) are tested with a context that selects
-the glossy component only: delta samples then come back with weight 0, which the harness drops,
-and the remaining histogram integrates to 1 - P(delta), as the pdf does.
+the glossy component only: for a coated paint that is the glossy lobe group alone (flakes;
+sampled and pdf'd on its own by the core's lobe calls, see test_components.py), so the
+histogram and the pdf both integrate to one.
 """
 
 import json

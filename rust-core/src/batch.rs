@@ -19,6 +19,7 @@
 use crate::bxdf::{LaneSample, SurfacePoint};
 use crate::frame::HORIZON_COS;
 use crate::lanes::{self, Lanes, Mask};
+use crate::lobes::LobeSelection;
 use crate::material::Material;
 use crate::math::{Rgb, Vec3};
 use crate::models::{above_or_up, checked_sample, KernelVisitor, LaneKernel, Model};
@@ -516,8 +517,11 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     f: Option<&Dst3<L::Elem>>,
     pdf: Option<&Dst1<L::Elem>>,
     scale: Option<Scales<L::Elem>>,
+    lobes: Option<u32>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
+    // A lobe mask of none of the lobes: zero values and densities.
+    let nothing = lobes == Some(0);
     let mut start = range.0;
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
@@ -529,11 +533,12 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
         if !(ok | !on).all() {
             report.record(start, width, on & !ok, L::Mask::splat(false));
         }
-        let keep = on & ok;
+        let keep = on & ok & L::Mask::splat(!nothing);
         if let Some(f) = f {
-            let v = match scale {
-                Some(sc) => {
-                    let one = <L::Elem as Real>::of(1.0);
+            let one = <L::Elem as Real>::of(1.0);
+            let v = match (scale, lobes) {
+                (_, Some(0)) => Rgb::zero(),
+                (Some(sc), l) => {
                     // SAFETY: the scales hold the elements base..base + len ⊇ start..start + width.
                     let (m, p) = unsafe {
                         (
@@ -541,15 +546,24 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
                             load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
                         )
                     };
-                    model.eval_scaled(a, o, [m, p])
+                    match l {
+                        None => model.eval_scaled(a, o, [m, p]),
+                        Some(l) => model.eval_lobes(a, o, [m, p], l),
+                    }
                 }
-                None => model.eval(a, o),
+                (None, None) => model.eval(a, o),
+                (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
             };
             let v = Rgb::select(keep, v, Rgb::zero());
             unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
         }
         if let Some(pdf) = pdf {
-            let v = lanes::keep(keep, model.pdf(a, o));
+            let v = match lobes {
+                None => model.pdf(a, o),
+                Some(0) => L::c(0.0),
+                Some(l) => model.pdf_lobes(a, o, l),
+            };
+            let v = lanes::keep(keep, v);
             unsafe { store1(pdf, start, width, v) };
         }
         start += width;
@@ -578,6 +592,7 @@ pub const SAMPLE_FAILED: u32 = 2;
 pub const SAMPLE_INVALID_INPUT: u32 = 4;
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn sample_kernel<L: Lanes, K: LaneKernel>(
     model: &K,
     range: (usize, usize),
@@ -586,6 +601,7 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
     active: Option<&[u8]>,
     out: &SampleOut<L::Elem>,
     flags: Option<*mut u32>,
+    lobes: Option<u32>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
     let mut start = range.0;
@@ -601,7 +617,13 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
         }
         let (lo, hi) = (L::c(0.0), L::splat(below_one));
         let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
-        let s: LaneSample<L> = model.sample(o, uc);
+        let s: LaneSample<L> = match lobes {
+            None => model.sample(o, uc),
+            Some(l) => {
+                let s = model.sample_lobes(o, uc, l);
+                LaneSample { valid: s.valid & L::Mask::splat(l != 0), ..s }
+            }
+        };
         // SAFETY: start + width ≤ n for every output (checked by `sample`).
         unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) };
         start += width;
@@ -687,6 +709,7 @@ enum Args<'v, 'a> {
         f: Option<&'v Dst3<'a, f32>>,
         pdf: Option<&'v Dst1<'a, f32>>,
         scale: Option<Scales<'v, f32>>,
+        lobes: Option<u32>,
     },
     Sample {
         wo: &'v Src3<'a, f32>,
@@ -694,6 +717,7 @@ enum Args<'v, 'a> {
         active: Option<&'a [u8]>,
         out: &'v SampleOut<'a, f32>,
         flags: Option<*mut u32>,
+        lobes: Option<u32>,
     },
 }
 
@@ -705,11 +729,11 @@ impl Args<'_, '_> {
     #[inline(always)]
     fn run<L: Lanes<Elem = f32>, K: LaneKernel>(self, kernel: &K, range: (usize, usize)) -> BatchReport {
         match self {
-            Args::EvalPdf { wi, wo, active, f, pdf, scale } => {
-                eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale)
+            Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes } => {
+                eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
             }
-            Args::Sample { wo, u, active, out, flags } => {
-                sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags)
+            Args::Sample { wo, u, active, out, flags, lobes } => {
+                sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags, lobes)
             }
         }
     }
@@ -773,11 +797,47 @@ pub fn eval_pdf(
     f: Option<&Dst3<f32>>,
     pdf: Option<&Dst1<f32>>,
 ) -> Result<BatchReport, LayoutError> {
+    eval_pdf_impl(m, wi, wo, active, f, pdf, None)
+}
+
+/// The lobe mask of a [`LobeSelection`] as the kernels take it: `None` = every lobe (the
+/// plain kernels), `Some(0)` = none.
+fn kernel_lobes(sel: LobeSelection) -> Option<u32> {
+    match sel {
+        LobeSelection::All => None,
+        LobeSelection::Nothing => Some(0),
+        LobeSelection::Some(l) => Some(l),
+    }
+}
+
+/// [`eval_pdf`] restricted to a lobe selection (`Material::select_lobes`): the same SIMD
+/// kernels; [`LobeSelection::All`] runs exactly [`eval_pdf`].
+pub fn eval_pdf_lobes(
+    m: &Material,
+    sel: LobeSelection,
+    wi: &Src3<f32>,
+    wo: &Src3<f32>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f32>>,
+    pdf: Option<&Dst1<f32>>,
+) -> Result<BatchReport, LayoutError> {
+    eval_pdf_impl(m, wi, wo, active, f, pdf, kernel_lobes(sel))
+}
+
+fn eval_pdf_impl(
+    m: &Material,
+    wi: &Src3<f32>,
+    wo: &Src3<f32>,
+    active: Option<&[u8]>,
+    f: Option<&Dst3<f32>>,
+    pdf: Option<&Dst1<f32>>,
+    lobes: Option<u32>,
+) -> Result<BatchReport, LayoutError> {
     let n = wi.n;
     check_views(n, &[("wo", wo.n)])?;
     check_views(n, &[("active", active.map_or(n, <[u8]>::len))])?;
     check_views(n, &[("f", f.map_or(n, |f| f.n)), ("pdf", pdf.map_or(n, |p| p.n))])?;
-    let args = Args::EvalPdf { wi, wo, active, f, pdf, scale: None };
+    let args = Args::EvalPdf { wi, wo, active, f, pdf, scale: None, lobes };
     Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
 }
 
@@ -790,13 +850,37 @@ pub fn sample(
     active: Option<&[u8]>,
     out: &mut SampleOut<f32>,
 ) -> Result<BatchReport, LayoutError> {
+    sample_impl(m, wo, u, active, out, None)
+}
+
+/// [`sample`] among the lobes of a lobe selection (`Material::select_lobes`), their
+/// selection renormalised; [`LobeSelection::All`] runs exactly [`sample`].
+pub fn sample_lobes(
+    m: &Material,
+    sel: LobeSelection,
+    wo: &Src3<f32>,
+    u: &Src3<f32>,
+    active: Option<&[u8]>,
+    out: &mut SampleOut<f32>,
+) -> Result<BatchReport, LayoutError> {
+    sample_impl(m, wo, u, active, out, kernel_lobes(sel))
+}
+
+fn sample_impl(
+    m: &Material,
+    wo: &Src3<f32>,
+    u: &Src3<f32>,
+    active: Option<&[u8]>,
+    out: &mut SampleOut<f32>,
+    lobes: Option<u32>,
+) -> Result<BatchReport, LayoutError> {
     let n = wo.n;
     check_views(n, &[("u", u.n), ("active", active.map_or(n, <[u8]>::len))])?;
     check_views(n, &[("wi", out.wi.n), ("weight", out.weight.n), ("pdf", out.pdf.n)])?;
     check_views(n, &[("flags", out.flags.as_ref().map_or(n, |f| f.len()))])?;
     let flags = out.flags.as_mut().map(|f| f.as_mut_ptr());
     let out: &SampleOut<f32> = out;
-    let args = Args::Sample { wo, u, active, out, flags };
+    let args = Args::Sample { wo, u, active, out, flags, lobes };
     Ok(run(n, |s, e| args.dispatch(m.model(), (s, e))))
 }
 
@@ -884,7 +968,7 @@ pub fn eval_pdf_at(
         // SAFETY: i < n (checked above).
         let (metal, pearl) = scales_of(m.model(), |i| unsafe { wi.get(i) }, wo, at, on, (s, e));
         let scale = Some(Scales { metal: &metal, pearl: &pearl, base: s });
-        Args::EvalPdf { wi, wo, active, f, pdf, scale }.dispatch(m.model(), (s, e))
+        Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes: None }.dispatch(m.model(), (s, e))
     }))
 }
 
@@ -921,7 +1005,8 @@ pub fn sample_at(
     let (metal_w, pearl_w, rescale_w) =
         (Shared(metal.as_mut_ptr()), Shared(pearl.as_mut_ptr()), Shared(rescale.as_mut_ptr()));
     let report = run(n, |s, e| {
-        let report = Args::Sample { wo, u, active, out, flags: Some(flags.ptr()) }.dispatch(m.model(), (s, e));
+        let report =
+            Args::Sample { wo, u, active, out, flags: Some(flags.ptr()), lobes: None }.dispatch(m.model(), (s, e));
         // SAFETY (this closure): the work item owns elements s..e of every buffer; i < n.
         let good = |i: usize| active.is_none_or(|a| a[i] != 0) && unsafe { *flags.ptr().add(i) } == 0;
         let (ms, ps) = scales_of(m.model(), |i| unsafe { out.wi.get(i) }, wo, at, good, (s, e));
@@ -944,7 +1029,7 @@ pub fn sample_at(
     let scale = Some(Scales { metal: &metal, pearl: &pearl, base: 0 });
     let rescale = &rescale;
     run(n, |s, e| {
-        Args::EvalPdf { wi: &wi_src, wo, active: Some(rescale), f: Some(&f_dst), pdf: None, scale }
+        Args::EvalPdf { wi: &wi_src, wo, active: Some(rescale), f: Some(&f_dst), pdf: None, scale, lobes: None }
             .dispatch(m.model(), (s, e));
         for i in (s..e).filter(|&i| rescale[i] != 0) {
             // SAFETY: i < n, element of this work item.
@@ -989,7 +1074,7 @@ pub fn eval_pdf_f64(
     impl KernelVisitor for F64<'_, '_> {
         type Output = BatchReport;
         fn visit<K: LaneKernel>(self, k: &K) -> BatchReport {
-            eval_pdf_kernel::<f64, K>(k, self.range, self.wi, self.wo, self.active, self.f, self.pdf, None)
+            eval_pdf_kernel::<f64, K>(k, self.range, self.wi, self.wo, self.active, self.f, self.pdf, None, None)
         }
     }
     Ok(run(n, |s, e| m.model().visit_kernel(F64 { wi, wo, active, f, pdf, range: (s, e) })))

@@ -95,6 +95,28 @@ pub trait LaneBxdf {
         let _ = scale;
         self.eval_lanes(wi, wo)
     }
+    /// [`LaneBxdf::eval_scaled_lanes`] restricted to the lobes of the lobe mask `lobes`
+    /// ([`crate::lobes::bits`]: `DIFFUSE`, `GLOSSY`, `COAT`). Models that cannot separate
+    /// their lobes keep this default (the full value): `Material::select_lobes` lets a mask
+    /// reach them only when it enables all of their lobes.
+    #[inline(always)]
+    fn eval_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
+        let _ = lobes;
+        self.eval_scaled_lanes(wi, wo, scale)
+    }
+    /// The density of [`LaneBxdf::sample_lobes_lanes`] (see [`LaneBxdf::eval_lobes_lanes`]).
+    #[inline(always)]
+    fn pdf_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
+        let _ = lobes;
+        self.pdf_lanes(wi, wo)
+    }
+    /// A sample among the lobes `lobes` enables, their selection renormalised (see
+    /// [`LaneBxdf::eval_lobes_lanes`]).
+    #[inline(always)]
+    fn sample_lobes_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
+        let _ = lobes;
+        self.sample_lanes(wo, u)
+    }
 }
 
 /// Implements [`Bxdf`] for a [`LaneBxdf`] model by calling its lane methods with a one-lane

@@ -26,6 +26,83 @@ pub mod bits {
     /// The value depends on the wavelength beyond its RGB projection (thin film, HTSG):
     /// `Material::eval_spectral` evaluates the physics per wavelength.
     pub const SPECTRAL: u32 = 64;
+    /// The material has a clearcoat top reflection that a lobe mask selects on its own
+    /// (`COAT` in [`SELECTABLE`]); its kind (`GLOSSY`, or `DELTA` for a smooth coat) is in
+    /// [`crate::Material::lobe_parts`].
+    pub const COAT: u32 = 128;
+    /// The bits a lobe mask may hold ([`crate::Material::select_lobes`]): `DIFFUSE` (pigment,
+    /// diffuse terms), `GLOSSY` (glossy lobes other than a coat's top reflection: flakes,
+    /// metallic base, specular lobes) and `COAT` (the clearcoat's top reflection).
+    pub const SELECTABLE: u32 = DIFFUSE | GLOSSY | COAT;
+}
+
+/// A lobe group of a material that a lobe mask selects: `select` the mask bit(s) that enable
+/// it ([`bits::SELECTABLE`]), `kinds` what it is (`DIFFUSE`, `GLOSSY`, `DELTA` bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LobePart {
+    /// The lobe-mask bits that enable this group (all of them must be set for models that
+    /// do not separate their lobes).
+    pub select: u32,
+    /// Its kinds: [`bits::DIFFUSE`], [`bits::GLOSSY`], [`bits::DELTA`].
+    pub kinds: u32,
+}
+
+/// A lobe mask validated against a material ([`crate::Material::select_lobes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LobeSelection {
+    /// Every lobe the material has: the plain calls (no cost, the same results).
+    All,
+    /// None of its lobes: zero values and densities, failed samples.
+    Nothing,
+    /// Some of the lobes of a model that separates them (the mask, restricted to its parts).
+    Some(u32),
+}
+
+/// The lobe groups of a material (see [`LobePart`]).
+pub(crate) fn lobe_parts(m: &Material) -> Vec<LobePart> {
+    let split = match m.model() {
+        crate::Model::CoatedPaint(p) => Some(p.lobe_parts()),
+        crate::Model::RoughPlastic(p) => Some(p.lobe_parts()),
+        _ => None,
+    };
+    if let Some(parts) = split.filter(|p| !p.is_empty()) {
+        return parts.into_iter().map(|(select, kinds)| LobePart { select, kinds }).collect();
+    }
+    let kinds = lobes(m) & (bits::DIFFUSE | bits::GLOSSY | bits::DELTA);
+    let select =
+        if DIFFUSE_ONLY.contains(&m.info().name) { bits::DIFFUSE } else { bits::GLOSSY | (kinds & bits::DIFFUSE) };
+    vec![LobePart { select, kinds: if kinds == 0 { select } else { kinds } }]
+}
+
+/// Validates a lobe mask for a material (see [`crate::Material::select_lobes`]).
+pub(crate) fn select_lobes(m: &Material, mask: u32) -> Result<LobeSelection, crate::Error> {
+    if mask & !bits::SELECTABLE != 0 {
+        return Err(crate::Error::Invalid {
+            param: "lobes".into(),
+            reason: format!(
+                "lobe mask {mask:#x} has bits other than DIFFUSE (1), GLOSSY (2) and COAT (128): {:#x}",
+                mask & !bits::SELECTABLE
+            ),
+        });
+    }
+    let parts = lobe_parts(m);
+    let union = parts.iter().fold(0, |a, p| a | p.select);
+    if mask & union == union {
+        return Ok(LobeSelection::All);
+    }
+    if mask & union == 0 {
+        return Ok(LobeSelection::Nothing);
+    }
+    if m.model().separates_lobes() {
+        return Ok(LobeSelection::Some(mask & union));
+    }
+    Err(crate::Error::Invalid {
+        param: "lobes".into(),
+        reason: format!(
+            "model \"{}\" evaluates its lobes (mask bits {union:#x}) together: a lobe mask must enable all or none of them (got {mask:#x})",
+            m.info().name
+        ),
+    })
 }
 
 /// Models whose only lobe is diffuse.
@@ -90,19 +167,7 @@ pub(crate) fn lobes(m: &Material) -> u32 {
         out |= bits::GLOSSY;
     }
     match name {
-        "coated_paint" => {
-            let smooth = p.num("coat_roughness") == Some(0.0);
-            if smooth && p.num("coat_ior").is_some_and(|e| e != 1.0) {
-                out |= bits::DELTA;
-            }
-            // Only the coat is glossy-capable besides flakes, pearls and a metallic base.
-            let other_glossy = p.num("flake_density").unwrap_or(0.0) > 0.0
-                || p.num("pearl_density").unwrap_or(0.0) > 0.0
-                || p.num("base_metallic").unwrap_or(0.0) > 0.0;
-            if smooth && !other_glossy {
-                out &= !bits::GLOSSY;
-            }
-        }
+        // coated_paint: from its lobe groups, below.
         "principled" => {
             let singular = |r: f64| (r * r) * (r * r) <= PRINCIPLED_SINGULAR_ALPHA2;
             let coat = p.num("coat_weight").unwrap_or(0.0) > PRINCIPLED_WEIGHT_CUTOFF
@@ -114,6 +179,15 @@ pub(crate) fn lobes(m: &Material) -> u32 {
         }
         "htsg" => out |= bits::DELTA,
         _ => {}
+    }
+    if let crate::Model::CoatedPaint(paint) = m.model() {
+        // The kinds are those of the lobe groups a mask selects (the built paint's): the coat's
+        // top reflection (none for a coat of index 1), and a diffuse group that also holds the
+        // multiple-scatter lobe (non-zero over a black pigment with flakes).
+        out &= !(bits::DIFFUSE | bits::GLOSSY | bits::DELTA);
+        for (select, kinds) in paint.lobe_parts() {
+            out |= kinds | (select & bits::COAT);
+        }
     }
     if ALWAYS_ANISOTROPIC.contains(&name)
         || ANISO_PAIRS.iter().any(|(a, b)| matches!((p.num(a), p.num(b)), (Some(x), Some(y)) if x != y))
@@ -216,8 +290,9 @@ mod tests {
         }
     }
 
-    /// A material reports DIFFUSE exactly when its diffuse albedo is non-zero, and pure
-    /// diffuse models report no glossy lobe.
+    /// A material reports DIFFUSE exactly when its diffuse albedo is non-zero (the coated
+    /// paint also over a black pigment when its multiple-scatter lobe is non-zero; none of
+    /// the check sets has one), and pure diffuse models report no glossy lobe.
     #[test]
     fn diffuse_bit_and_albedo() {
         for (name, m) in materials() {

@@ -6,6 +6,7 @@
 
 use crate::bxdf::{BsdfSample, ModelInfo, SurfacePoint};
 use crate::error::Error;
+use crate::lobes::LobeSelection;
 use crate::math::{Rgb, Vec3};
 use crate::models::{self, Model};
 use crate::params::Params;
@@ -121,6 +122,108 @@ impl Material {
     #[must_use]
     pub fn lobes(&self) -> u32 {
         crate::lobes::lobes(self)
+    }
+
+    /// The lobe groups a lobe mask selects (one per separable group for models that separate
+    /// their lobes, such as `coated_paint`: pigment, glossy base lobes, coat; one group
+    /// holding every lobe for the others). What a renderer's components are.
+    #[must_use]
+    pub fn lobe_parts(&self) -> Vec<crate::lobes::LobePart> {
+        crate::lobes::lobe_parts(self)
+    }
+
+    /// Validates a lobe mask ([`crate::lobes::bits::SELECTABLE`]) for this material: unknown
+    /// bits, or a mask enabling some but not all of the lobes of a model that evaluates them
+    /// together, are errors naming the mask.
+    pub fn select_lobes(&self, mask: u32) -> Result<crate::lobes::LobeSelection, Error> {
+        crate::lobes::select_lobes(self, mask)
+    }
+
+    /// [`Material::eval`] restricted to a lobe selection.
+    #[inline]
+    #[must_use]
+    pub fn eval_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, sel: LobeSelection) -> Rgb<T> {
+        match sel {
+            LobeSelection::All => self.eval(wi, wo),
+            LobeSelection::Nothing => Rgb::zero(),
+            LobeSelection::Some(l) => match (sanitize(wi), sanitize(wo)) {
+                (Some(wi), Some(wo)) => self.model.eval_lobes(wi, wo, l),
+                _ => Rgb::zero(),
+            },
+        }
+    }
+
+    /// The density of [`Material::sample_lobes`].
+    #[inline]
+    #[must_use]
+    pub fn pdf_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, sel: LobeSelection) -> T {
+        match sel {
+            LobeSelection::All => self.pdf(wi, wo),
+            LobeSelection::Nothing => T::zero(),
+            LobeSelection::Some(l) => match (sanitize(wi), sanitize(wo)) {
+                (Some(wi), Some(wo)) => self.model.pdf_lobes(wi, wo, l),
+                _ => T::zero(),
+            },
+        }
+    }
+
+    /// [`Material::sample`] among the selected lobes (their selection renormalised): the
+    /// weight is the selected lobes' `f · cos / pdf`.
+    #[inline]
+    #[must_use]
+    pub fn sample_lobes<T: Real>(&self, wo: Vec3<T>, u: [T; 3], sel: LobeSelection) -> Option<BsdfSample<T>> {
+        match sel {
+            LobeSelection::All => self.sample(wo, u),
+            LobeSelection::Nothing => None,
+            LobeSelection::Some(l) => {
+                let wo = sanitize(wo)?;
+                if !u.iter().all(|x| x.is_finite()) {
+                    return None;
+                }
+                let one_minus = crate::sampling::one_minus_epsilon::<T>();
+                self.model.sample_lobes(wo, u.map(|x| x.clamp_to(T::zero(), one_minus)), l)
+            }
+        }
+    }
+
+    /// [`Material::eval_at`] restricted to a lobe selection.
+    #[inline]
+    #[must_use]
+    pub fn eval_at_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint, sel: LobeSelection) -> Rgb<T> {
+        match sel {
+            LobeSelection::All => self.eval_at(wi, wo, at),
+            LobeSelection::Nothing => Rgb::zero(),
+            LobeSelection::Some(_) if !at.is_finite() => self.eval_lobes(wi, wo, sel),
+            LobeSelection::Some(l) => match (sanitize(wi), sanitize(wo)) {
+                (Some(wi), Some(wo)) => self.model.eval_at_lobes(wi, wo, at, l),
+                _ => Rgb::zero(),
+            },
+        }
+    }
+
+    /// [`Material::sample_at`] among the selected lobes; the density is [`Material::pdf_lobes`].
+    #[inline]
+    #[must_use]
+    pub fn sample_at_lobes<T: Real>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        at: &SurfacePoint,
+        sel: LobeSelection,
+    ) -> Option<BsdfSample<T>> {
+        match sel {
+            LobeSelection::All => self.sample_at(wo, u, at),
+            LobeSelection::Nothing => None,
+            LobeSelection::Some(_) if !at.is_finite() => self.sample_lobes(wo, u, sel),
+            LobeSelection::Some(l) => {
+                let wo = sanitize(wo)?;
+                if !u.iter().all(|x| x.is_finite()) {
+                    return None;
+                }
+                let one_minus = crate::sampling::one_minus_epsilon::<T>();
+                self.model.sample_at_lobes(wo, u.map(|x| x.clamp_to(T::zero(), one_minus)), at, l)
+            }
+        }
     }
 
     /// The albedo of the diffuse (pigment) part, linear Rec.709; zero without one. What a

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import json as _json
-from ctypes import byref, c_bool, c_uint32, c_void_p
+from ctypes import byref, c_bool, c_size_t, c_uint32, c_void_p
 from typing import Any, NamedTuple, Optional, Union
 
 import numpy as np
@@ -61,6 +61,8 @@ __all__ = [
     "LOBE_NON_RECIPROCAL",
     "LOBE_SPATIALLY_VARYING",
     "LOBE_SPECTRAL",
+    "LOBE_COAT",
+    "LOBES_SELECTABLE",
     "set_thread_count",
     "choose_configuration",
     "simd_level",
@@ -226,6 +228,11 @@ LOBE_DIFFUSE, LOBE_GLOSSY, LOBE_DELTA = 1, 2, 4
 LOBE_ANISOTROPIC, LOBE_NON_RECIPROCAL, LOBE_SPATIALLY_VARYING = 8, 16, 32
 #: Lobe bit: spectral physics (thin film, HTSG; the C ABI's lq_eval_spectral, ABI 0.6).
 LOBE_SPECTRAL = 64
+#: Lobe-mask bit (ABI 0.7): the clearcoat's top reflection, selected on its own
+#: (:meth:`Material.lobe_parts`, :meth:`Material.eval_pdf_lobes`).
+LOBE_COAT = 128
+#: Every bit a lobe mask may hold: ``LOBE_DIFFUSE | LOBE_GLOSSY | LOBE_COAT``.
+LOBES_SELECTABLE = 131
 
 
 class Material:
@@ -431,6 +438,64 @@ class Material:
             )
         else:
             s = lib.lq_sample_f64(self._h(), n, _ptr(wo_), _ptr(u_), _ptr(wi), _ptr(weight), _ptr(pdf), _ptr(flags))
+        result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
+        return self._finish(s, result, strict)
+
+    # ---- lobe selection (ABI 0.7)
+
+    def lobe_parts(self) -> list:
+        """The lobe groups a lobe mask selects (``lq_material_lobe_part``): a list of
+        ``(select, kinds)``: the mask bits that enable the group (:data:`LOBE_DIFFUSE`,
+        :data:`LOBE_GLOSSY`, :data:`LOBE_COAT`) and what it is (:data:`LOBE_DIFFUSE`,
+        :data:`LOBE_GLOSSY`, :data:`LOBE_DELTA`). ``coated_paint`` has up to three (pigment,
+        glossy base lobes, coat); other models one, whose mask bits must be set together."""
+        n = c_size_t(0)
+        _check(_native.lib.lq_material_lobe_part_count(self._h(), byref(n)))
+        out = []
+        for i in range(n.value):
+            sel, kinds = c_uint32(0), c_uint32(0)
+            _check(_native.lib.lq_material_lobe_part(self._h(), i, byref(sel), byref(kinds)))
+            out.append((sel.value, kinds.value))
+        return out
+
+    def eval_pdf_lobes(self, wi, wo, lobes: int, uv=None, duv=None, *, strict: bool = True):
+        """``(f, pdf)`` restricted to the lobes of the mask ``lobes`` (float32,
+        ``lq_eval_pdf_lobes``): the pdf is that of :meth:`sample_lobes` with the same mask. A
+        mask with other bits, or one splitting the lobes of a model that evaluates them
+        together, raises InvalidArgumentError."""
+        arrays, names, widths = [wi, wo], ["wi", "wo"], [3, 3]
+        if uv is not None:
+            arrays.append(uv), names.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), names.append("duv"), widths.append(4)
+        vecs, lead, _ = _vectors(*arrays, names=names, widths=widths, dtype=np.float32)
+        uv_ = vecs[2] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        n = vecs[0].shape[0]
+        f, p = np.zeros((n, 3), np.float32), np.zeros(n, np.float32)
+        s = _native.lib.lq_eval_pdf_lobes(
+            self._h(), n, _ptr(vecs[0]), _ptr(vecs[1]), _ptr(uv_), _ptr(duv_), int(lobes), _ptr(f), _ptr(p)
+        )
+        return self._finish(s, (f.reshape(lead + (3,)), p.reshape(lead)), strict)
+
+    def sample_lobes(self, wo, u, lobes: int, uv=None, duv=None, *, strict: bool = True) -> Sample:
+        """:meth:`sample` among the lobes of the mask ``lobes`` (their selection renormalised;
+        float32, ``lq_sample_lobes``)."""
+        arrays, names, widths = [wo, u], ["wo", "u"], [3, 3]
+        if uv is not None:
+            arrays.append(uv), names.append("uv"), widths.append(2)
+        if duv is not None:
+            arrays.append(duv), names.append("duv"), widths.append(4)
+        vecs, lead, _ = _vectors(*arrays, names=names, widths=widths, dtype=np.float32)
+        uv_ = vecs[2] if uv is not None else None
+        duv_ = vecs[-1] if duv is not None else None
+        n = vecs[0].shape[0]
+        wi, weight = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
+        pdf, flags = np.zeros(n, np.float32), np.zeros(n, np.uint32)
+        s = _native.lib.lq_sample_lobes(
+            self._h(), n, _ptr(vecs[0]), _ptr(vecs[1]), _ptr(uv_), _ptr(duv_), int(lobes),
+            _ptr(wi), _ptr(weight), _ptr(pdf), _ptr(flags),
+        )
         result = Sample(wi.reshape(lead + (3,)), weight.reshape(lead + (3,)), pdf.reshape(lead), flags.reshape(lead))
         return self._finish(s, result, strict)
 

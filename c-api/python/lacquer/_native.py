@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 6
+ABI_MINOR = 7
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -114,6 +114,11 @@ _SIGNATURES = {
     "lq_render_session_target": (c_uint32, [c_void_p]),
     "lq_render_session_image": (c_int32, [c_void_p, POINTER(c_void_p)]),
     "lq_render_session_free": (None, [c_void_p]),
+    # Lobe selection (ABI 0.7).
+    "lq_material_lobe_part_count": (c_int32, [c_void_p, POINTER(c_size_t)]),
+    "lq_material_lobe_part": (c_int32, [c_void_p, c_size_t, U32, U32]),
+    "lq_eval_pdf_lobes": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, c_uint32, F32, F32]),
+    "lq_sample_lobes": (c_int32, [c_void_p, c_size_t, F32, F32, F32, F32, c_uint32, F32, F32, F32, U32]),
 }
 
 for _name, (_restype, _argtypes) in _SIGNATURES.items():

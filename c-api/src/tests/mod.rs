@@ -32,3 +32,4 @@ pub(crate) fn take_string(p: *mut c_char) -> String {
     unsafe { lq_string_free(p) };
     s
 }
+mod lobes;

@@ -7,6 +7,7 @@ use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, LaneBxdf, LaneSample,
 use crate::frame::{above, both_above, HORIZON_COS};
 use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
+use crate::paint::coated_paint::PaintParts;
 use crate::real::Real;
 
 /// The `pdf` and `sample` of a [`Bxdf`] whose sampler is a shared lobe type (`self.$lobe`
@@ -251,6 +252,92 @@ impl Model {
         Self::valid_sample(self.sample_at_unchecked(wo, u, at)?)
     }
 
+    /// True for models that evaluate, sample and pdf each lobe group of a lobe mask on its own
+    /// (`Material::select_lobes`); the others take a mask only as all or none of their lobes.
+    #[must_use]
+    pub fn separates_lobes(&self) -> bool {
+        matches!(self, Model::CoatedPaint(_) | Model::RoughPlastic(_))
+    }
+
+    /// [`Model::eval`] restricted to the lobes of `lobes` (a mask `Material::select_lobes`
+    /// accepted for this model: models that do not separate lobes give the full value).
+    #[inline]
+    #[must_use]
+    pub fn eval_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, lobes: u32) -> Rgb<T> {
+        if !both_above(wi, wo) {
+            return Rgb::zero();
+        }
+        match self {
+            Model::CoatedPaint(p) => p.eval_parts(wi, wo, T::one(), T::one(), PaintParts::of(lobes)),
+            Model::RoughPlastic(p) => p.eval_lobes_lanes(wi, wo, [T::one(); 2], lobes),
+            _ => self.eval_unchecked(wi, wo),
+        }
+    }
+
+    /// [`Model::pdf`] of [`Model::sample_lobes`].
+    #[inline]
+    #[must_use]
+    pub fn pdf_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, lobes: u32) -> T {
+        if !both_above(wi, wo) {
+            return T::zero();
+        }
+        match self {
+            Model::CoatedPaint(p) => p.pdf_parts(wi, wo, PaintParts::of(lobes)),
+            Model::RoughPlastic(p) => p.pdf_lobes_lanes(wi, wo, lobes),
+            _ => self.pdf_unchecked(wi, wo),
+        }
+    }
+
+    /// [`Model::sample`] among the lobes of `lobes` (selection renormalised to them).
+    #[inline]
+    #[must_use]
+    pub fn sample_lobes<T: Real>(&self, wo: Vec3<T>, u: [T; 3], lobes: u32) -> Option<BsdfSample<T>> {
+        if !above(wo.z) {
+            return None;
+        }
+        let s = match self {
+            Model::CoatedPaint(p) => p.sample_parts(wo, u, PaintParts::of(lobes)).into_option(),
+            Model::RoughPlastic(p) => p.sample_lobes_lanes(wo, u, lobes).into_option(),
+            _ => self.sample_unchecked(wo, u),
+        };
+        Self::valid_sample(s?)
+    }
+
+    /// [`Model::eval_at`] restricted to the lobes of `lobes`.
+    #[inline]
+    #[must_use]
+    pub fn eval_at_lobes<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint, lobes: u32) -> Rgb<T> {
+        if !both_above(wi, wo) {
+            return Rgb::zero();
+        }
+        match self {
+            Model::CoatedPaint(p) => p.eval_at_parts(wi, wo, at, PaintParts::of(lobes)),
+            Model::RoughPlastic(_) => self.eval_lobes(wi, wo, lobes),
+            _ => self.eval_at_unchecked(wi, wo, at),
+        }
+    }
+
+    /// [`Model::sample_at`] among the lobes of `lobes`; its density is [`Model::pdf_lobes`].
+    #[inline]
+    #[must_use]
+    pub fn sample_at_lobes<T: Real>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        at: &SurfacePoint,
+        lobes: u32,
+    ) -> Option<BsdfSample<T>> {
+        if !above(wo.z) {
+            return None;
+        }
+        let s = match self {
+            Model::CoatedPaint(p) => p.sample_at_parts(wo, u, at, PaintParts::of(lobes)),
+            Model::RoughPlastic(_) => return self.sample_lobes(wo, u, lobes),
+            _ => self.sample_at_unchecked(wo, u, at),
+        };
+        Self::valid_sample(s?)
+    }
+
     #[inline]
     fn valid_sample<T: Real>(s: BsdfSample<T>) -> Option<BsdfSample<T>> {
         let valid = s.pdf > T::zero() && s.pdf.is_finite() && s.weight.is_finite() && s.wi.is_finite();
@@ -399,6 +486,25 @@ pub trait LaneKernel: Sync {
         let _ = scale;
         self.eval(wi, wo)
     }
+    /// [`LaneKernel::eval_scaled`] restricted to a lobe mask (see
+    /// [`LaneBxdf::eval_lobes_lanes`]); kernels of models that do not separate lobes ignore it.
+    #[inline(always)]
+    fn eval_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
+        let _ = lobes;
+        self.eval_scaled(wi, wo, scale)
+    }
+    /// [`LaneKernel::pdf`] of [`LaneKernel::sample_lobes`].
+    #[inline(always)]
+    fn pdf_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
+        let _ = lobes;
+        self.pdf(wi, wo)
+    }
+    /// [`LaneKernel::sample`] among the lobes of a lobe mask.
+    #[inline(always)]
+    fn sample_lobes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
+        let _ = lobes;
+        self.sample(wo, u)
+    }
 }
 
 /// Receives a model's [`LaneKernel`] ([`Model::visit_kernel`]).
@@ -458,6 +564,22 @@ impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
     fn sample<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
         let above = lanes::gt(wo.z, L::c(HORIZON_COS));
         checked_sample(self.0.sample_lanes(above_or_up(above, wo), u), above)
+    }
+    #[inline(always)]
+    fn eval_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
+        let f = self.0.eval_lobes_lanes(above_or_up(above, wi), above_or_up(above, wo), scale, lobes);
+        Rgb::select(above, f, Rgb::zero())
+    }
+    #[inline(always)]
+    fn pdf_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
+        lanes::keep(above, self.0.pdf_lobes_lanes(above_or_up(above, wi), above_or_up(above, wo), lobes))
+    }
+    #[inline(always)]
+    fn sample_lobes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
+        let above = lanes::gt(wo.z, L::c(HORIZON_COS));
+        checked_sample(self.0.sample_lobes_lanes(above_or_up(above, wo), u, lobes), above)
     }
 }
 

@@ -70,7 +70,7 @@ use crate::energy_compensation::{visible_normal_integral, NormalDomain, SlopeCon
 use crate::error::Error;
 use crate::frame::{half_vector_masked, reflect};
 use crate::fresnel::{dielectric, refracted_cos};
-use crate::lanes::{self, Lanes};
+use crate::lanes::{self, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
@@ -380,16 +380,24 @@ impl RoughPlastic {
         lanes::select(lanes::gt(sum, L::c(0.0)), ps / sum, L::c(1.0))
     }
 
-    /// `f` given `t_o = T(cos θo)`.
+    /// `f` given `t_o = T(cos θo)`, restricted to the substrate (`diffuse`) and/or the
+    /// interface's specular reflection (`specular`; both: the full sum's arithmetic).
     #[inline(always)]
-    fn eval_with<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, t_o: L) -> Rgb<L> {
-        let diffuse = Rgb::from_array(self.diffuse_term) * (t_o * self.tables.lookup_lanes(wi.z));
-        let (h, defined) = half_vector_masked(wi, wo);
-        let mf = self.microfacet::<L>();
-        let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
-        let fr = dielectric(wo.dot(h), L::c(self.eta));
-        let spec = Rgb::from_array(self.specular) * (fr * dg / (L::c(4.0) * wi.z * wo.z));
-        diffuse + Rgb::select(defined, spec, Rgb::zero())
+    fn eval_with<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, t_o: L, (diffuse, specular): (bool, bool)) -> Rgb<L> {
+        let mut f = if diffuse {
+            Rgb::from_array(self.diffuse_term) * (t_o * self.tables.lookup_lanes(wi.z))
+        } else {
+            Rgb::zero()
+        };
+        if specular {
+            let (h, defined) = half_vector_masked(wi, wo);
+            let mf = self.microfacet::<L>();
+            let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
+            let fr = dielectric(wo.dot(h), L::c(self.eta));
+            let spec = Rgb::from_array(self.specular) * (fr * dg / (L::c(4.0) * wi.z * wo.z));
+            f += Rgb::select(defined, spec, Rgb::zero());
+        }
+        f
     }
 
     /// The pdf given the specular selection probability `ps`.
@@ -398,12 +406,57 @@ impl RoughPlastic {
         let spec = self.microfacet::<L>().reflection_pdf(wi, wo, self.sample_visible);
         ps * spec + (L::c(1.0) - ps) * cosine_hemisphere_pdf(wi.z)
     }
+
+    /// The lobes a lobe mask enables: `(diffuse substrate, specular interface)` (the interface
+    /// reflection is the coat's top reflection, `COAT`).
+    #[inline(always)]
+    fn parts(lobes: u32) -> (bool, bool) {
+        (lobes & crate::lobes::bits::DIFFUSE != 0, lobes & crate::lobes::bits::COAT != 0)
+    }
+
+    /// The specular selection probability for `t_o` restricted to the enabled lobes.
+    #[inline(always)]
+    fn probability_of<L: Lanes>(&self, t_o: L, (diffuse, specular): (bool, bool)) -> L {
+        match (diffuse, specular) {
+            (true, true) => self.specular_probability(t_o),
+            (false, true) => L::c(1.0),
+            _ => L::c(0.0),
+        }
+    }
+
+    /// Sampling restricted to the enabled lobes (both: [`LaneBxdf::sample_lanes`]).
+    #[inline(always)]
+    fn sample_parts<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], parts: (bool, bool)) -> LaneSample<L> {
+        let t_o = self.tables.lookup_lanes(wo.z);
+        let ps = self.probability_of(t_o, parts);
+        let specular = lanes::lt(u[0], ps);
+        let (spec_wi, spec_ok) =
+            self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], self.sample_visible);
+        let wi = Vec3::select(specular, spec_wi, cosine_hemisphere(u[1], u[2]));
+        let valid = (spec_ok | !specular) & L::Mask::splat(parts.0 || parts.1);
+        LaneSample::from_eval(wi, self.eval_with(wi, wo, t_o, parts), self.pdf_with(wi, wo, ps), valid)
+    }
+
+    /// The lobe groups: the substrate (`DIFFUSE`, when its albedo is non-zero) and the
+    /// interface reflection (`COAT`, glossy, when the specular scale is non-zero).
+    #[must_use]
+    pub fn lobe_parts(&self) -> Vec<(u32, u32)> {
+        use crate::lobes::bits;
+        let mut out = Vec::new();
+        if self.diffuse_term.iter().any(|&x| x > 0.0) {
+            out.push((bits::DIFFUSE, bits::DIFFUSE));
+        }
+        if self.specular.iter().any(|&x| x > 0.0) {
+            out.push((bits::COAT, bits::GLOSSY));
+        }
+        out
+    }
 }
 
 impl LaneBxdf for RoughPlastic {
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
-        self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z))
+        self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z), (true, true))
     }
 
     #[inline(always)]
@@ -414,14 +467,27 @@ impl LaneBxdf for RoughPlastic {
 
     #[inline(always)]
     fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let t_o = self.tables.lookup_lanes(wo.z);
-        let ps = self.specular_probability(t_o);
-        let specular = lanes::lt(u[0], ps);
-        let (spec_wi, spec_ok) =
-            self.microfacet::<L>().sample_reflection_masked(wo, u[1], u[2], self.sample_visible);
-        let wi = Vec3::select(specular, spec_wi, cosine_hemisphere(u[1], u[2]));
-        let valid = spec_ok | !specular;
-        LaneSample::from_eval(wi, self.eval_with(wi, wo, t_o), self.pdf_with(wi, wo, ps), valid)
+        self.sample_parts(wo, u, (true, true))
+    }
+
+    #[inline(always)]
+    fn eval_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, _scale: [L; 2], lobes: u32) -> Rgb<L> {
+        self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z), Self::parts(lobes))
+    }
+
+    #[inline(always)]
+    fn pdf_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
+        let parts = Self::parts(lobes);
+        if !(parts.0 || parts.1) {
+            return L::c(0.0);
+        }
+        let ps = self.probability_of(self.tables.lookup_lanes(wo.z), parts);
+        self.pdf_with(wi, wo, ps)
+    }
+
+    #[inline(always)]
+    fn sample_lobes_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
+        self.sample_parts(wo, u, Self::parts(lobes))
     }
 }
 

@@ -108,6 +108,21 @@ impl MetalBase {
     }
 }
 
+/// Which of the basecoat's lobes a call includes: the pigment (diffuse) and/or the glossy
+/// lobes (metallic base, metallic and pearlescent flakes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BaseParts {
+    /// The pigment (Lambert or EON, also seen through pearl flakes).
+    pub pigment: bool,
+    /// The metallic base and the flakes.
+    pub glossy: bool,
+}
+
+impl BaseParts {
+    /// Every lobe.
+    pub const ALL: Self = Self { pigment: true, glossy: true };
+}
+
 /// The basecoat.
 #[derive(Clone, Debug)]
 pub struct Basecoat {
@@ -212,7 +227,25 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
-        let mut f = self.pigment_eval(wi, wo);
+        self.eval_parts(wi, wo, metal_scale, pearl_scale, BaseParts::ALL)
+    }
+
+    /// [`Basecoat::eval_scaled`] restricted to `parts` (the pigment and/or the glossy lobes:
+    /// metal base and flakes). With [`BaseParts::ALL`] the same arithmetic as the full sum.
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_parts<T: Lanes>(
+        &self,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        metal_scale: T,
+        pearl_scale: T,
+        parts: BaseParts,
+    ) -> Rgb<T> {
+        let mut f = if parts.pigment { self.pigment_eval(wi, wo) } else { Rgb::zero() };
+        if !parts.glossy {
+            return f;
+        }
         match &self.blur {
             None => {
                 if let Some(m) = &self.metal {
@@ -237,6 +270,31 @@ impl Basecoat {
         f
     }
 
+    /// The lobe-selection weights `[pigment, metal, flakes]` restricted to `parts` (the
+    /// disabled ones zero).
+    #[inline(always)]
+    #[must_use]
+    pub fn selection_of(&self, parts: BaseParts) -> [f64; 3] {
+        let [a, b, c] = self.selection;
+        [if parts.pigment { a } else { 0.0 }, if parts.glossy { b } else { 0.0 }, if parts.glossy { c } else { 0.0 }]
+    }
+
+    /// The share of the lobe-selection weight that `parts` enable (1 for [`BaseParts::ALL`]).
+    #[must_use]
+    pub fn selection_share(&self, parts: BaseParts) -> f64 {
+        let total: f64 = self.selection.iter().sum();
+        if !(total > 0.0) {
+            return 0.0;
+        }
+        self.selection_of(parts).iter().sum::<f64>() / total
+    }
+
+    /// Whether the basecoat has a glossy lobe (a metallic base or flakes).
+    #[must_use]
+    pub fn has_glossy(&self) -> bool {
+        self.metal.is_some() || self.flakes.is_some()
+    }
+
     /// `f_b(wi, wo)`, the mean basecoat BRDF.
     #[inline(always)]
     #[must_use]
@@ -248,27 +306,36 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let [a, b, c] = self.selection.map(T::c);
-        if !(self.selection.iter().sum::<f64>() > 0.0) {
+        self.pdf_parts(wi, wo, BaseParts::ALL)
+    }
+
+    /// The density of [`Basecoat::sample_direction_parts`]: the mixture of the lobes `parts`
+    /// enable, renormalised to them.
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_parts<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: BaseParts) -> T {
+        let sel = self.selection_of(parts);
+        let [a, b, c] = sel.map(T::c);
+        if !(sel.iter().sum::<f64>() > 0.0) {
             return T::c(0.0);
         }
         let total = a + b + c;
         let mut p = a * cosine_hemisphere_pdf(wi.z);
         match &self.blur {
             None => {
-                if let Some(m) = &self.metal {
+                if let Some(m) = self.metal.as_ref().filter(|_| parts.glossy) {
                     p += b * m.pdf(wi, wo);
                 }
-                if let Some(f) = &self.flakes {
+                if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
                     p += c * f.pdf(wi, wo);
                 }
             }
             Some(blur) => {
                 let added = blur.one_sided(wo.z);
-                if let Some(m) = &self.metal {
+                if let Some(m) = self.metal.as_ref().filter(|_| parts.glossy) {
                     p += b * MetalBase::pdf_with(&m.blurred(added), wi, wo);
                 }
-                if let Some(f) = &self.flakes {
+                if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
                     p += c * FlakeLayer::pdf_with(&f.blurred(added), wi, wo);
                 }
             }
@@ -290,7 +357,20 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn sample_direction_masked<T: Lanes>(&self, wo: Vec3<T>, u: [T; 3], active: T::Mask) -> (Vec3<T>, T::Mask) {
-        let pick = pick3(self.selection.map(T::c), u[0]);
+        self.sample_direction_parts(wo, u, active, BaseParts::ALL)
+    }
+
+    /// [`Basecoat::sample_direction_masked`] choosing among the lobes `parts` enable only.
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_direction_parts<T: Lanes>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        active: T::Mask,
+        parts: BaseParts,
+    ) -> (Vec3<T>, T::Mask) {
+        let pick = pick3(self.selection_of(parts).map(T::c), u[0]);
         // Each lobe's sampler runs only when an active lane chose it (one lane: only the
         // chosen one, so the scalar paths pay for one sampler, not three).
         let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];

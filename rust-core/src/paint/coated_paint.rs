@@ -85,7 +85,7 @@
 //! Ershov et al. 2001 and Günther et al. 2005 (car paint structure); the thesis in
 //! `shared/seeds/004` (parameters and ranges, chapter 3).
 
-use super::basecoat::{Basecoat, MetalBase};
+use super::basecoat::{BaseParts, Basecoat, MetalBase};
 use super::coat::Coat;
 use super::flakes::FlakeLayer;
 use super::pick3;
@@ -95,6 +95,7 @@ use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo, Sur
 use crate::error::Error;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes, Mask};
+use crate::lobes::bits;
 use crate::math::{Rgb, Vec3};
 use crate::models::Model;
 use crate::params::{ParamSpec, Params};
@@ -404,9 +405,16 @@ impl CoatedPaint {
     /// `f` with the sparkle multipliers of the binder half vector at `at` (the basecoat sees
     /// the directions refracted into the coat).
     #[inline]
-    fn eval_sparkle<T: Real>(&self, sparkle: &Sparkle, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
+    fn eval_sparkle<T: Real>(
+        &self,
+        sparkle: &Sparkle,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        at: &SurfacePoint,
+        parts: PaintParts,
+    ) -> Rgb<T> {
         let [metal, pearl] = self.sparkle_multipliers(sparkle, wi, wo, at);
-        self.eval_scaled(wi, wo, T::of(metal), T::of(pearl))
+        self.eval_parts(wi, wo, T::of(metal), T::of(pearl), parts)
     }
 
     /// The sparkle's multipliers `[metallic, pearlescent]` of the flake lobes for one pair of
@@ -432,8 +440,14 @@ impl CoatedPaint {
 
     /// A sample of `wo` weighted with the BRDF `f` (the sparkle version of the lobe).
     #[inline]
-    fn sample_with<T: Real>(&self, wo: Vec3<T>, u: [T; 3], f: impl Fn(Vec3<T>) -> Rgb<T>) -> Option<BsdfSample<T>> {
-        let d = self.sample_direction(wo, u);
+    fn sample_with<T: Real>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        parts: PaintParts,
+        f: impl Fn(Vec3<T>) -> Rgb<T>,
+    ) -> Option<BsdfSample<T>> {
+        let d = self.sample_direction_parts(wo, u, parts);
         if !d.valid {
             return None;
         }
@@ -445,7 +459,7 @@ impl CoatedPaint {
         if d.wi.z <= T::zero() {
             return None;
         }
-        BsdfSample::from_eval(d.wi, f(d.wi), self.pdf(d.wi, wo))
+        BsdfSample::from_eval(d.wi, f(d.wi), self.pdf_with(d.wi, wo, d.selection, parts))
     }
 
     /// The three terms of `eval` separately: top reflection, single-scatter layer, multiple scatter.
@@ -453,7 +467,7 @@ impl CoatedPaint {
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
         [
             Rgb::splat(self.coat.reflection_eval(wi, wo)),
-            self.layer_term(wi, wo, T::one(), T::one()),
+            self.layer_term(wi, wo, T::one(), T::one(), PaintParts::ALL),
             self.multiple_term(wi, wo),
         ]
     }
@@ -476,12 +490,19 @@ impl CoatedPaint {
     /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
     /// `pearl_scale` (1 for the mean lobe, the sparkle multipliers otherwise).
     #[inline(always)]
-    fn layer_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+    fn layer_term<T: Lanes>(
+        &self,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        metal_scale: T,
+        pearl_scale: T,
+        parts: PaintParts,
+    ) -> Rgb<T> {
         let (ti, to) = (self.coat.transmittance(wi.z), self.coat.transmittance(wo.z));
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / T::c(self.coat.ior * self.coat.ior);
-        let mut f = self.base.eval_scaled(wi_in, wo_in, metal_scale, pearl_scale) * scale;
+        let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base()) * scale;
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
@@ -502,26 +523,82 @@ impl CoatedPaint {
     /// as explicit-flake simulations need).
     #[inline(always)]
     pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
-        let top = self.coat.reflection_eval(wi, wo);
-        Rgb::splat(top) + self.layer_term(wi, wo, metal_scale, pearl_scale) + self.multiple_term(wi, wo)
+        self.eval_parts(wi, wo, metal_scale, pearl_scale, PaintParts::ALL)
     }
 
-    /// The mixture density for `wo`'s lobe-selection weights `s`.
+    /// [`CoatedPaint::eval_scaled`] restricted to the lobes `parts` enables (see
+    /// [`PaintParts`]); with [`PaintParts::ALL`] the same arithmetic as the full sum.
     #[inline(always)]
-    fn pdf_with<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, s: [T; 3]) -> T {
+    pub fn eval_parts<T: Lanes>(
+        &self,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        metal_scale: T,
+        pearl_scale: T,
+        parts: PaintParts,
+    ) -> Rgb<T> {
+        let mut f = if parts.coat { Rgb::splat(self.coat.reflection_eval(wi, wo)) } else { Rgb::zero() };
+        if parts.pigment || parts.glossy {
+            f += self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
+        }
+        if parts.pigment {
+            f += self.multiple_term(wi, wo);
+        }
+        f
+    }
+
+    /// Lobe-selection weights for `wo` restricted to `parts`: the top reflection (coat), the
+    /// single-scatter layer lobe times the share of the basecoat's sampling weight `parts`
+    /// enables, the multiple-scatter lobe (pigment). [`PaintParts::ALL`]: [`Self::selection`].
+    #[inline(always)]
+    fn selection_parts<T: Lanes>(&self, mu_o: T, parts: PaintParts) -> [T; 3] {
+        let s = self.selection(mu_o);
+        if parts == PaintParts::ALL {
+            return s;
+        }
+        let zero = T::c(0.0);
+        let share = self.base.selection_share(parts.base());
+        [
+            if parts.coat { s[0] } else { zero },
+            if share > 0.0 { s[1] * T::c(share) } else { zero },
+            if parts.pigment { s[2] } else { zero },
+        ]
+    }
+
+    /// The mixture density for `wo`'s lobe-selection weights `s` (restricted to `parts`, as
+    /// [`Self::selection_parts`] gives them).
+    #[inline(always)]
+    fn pdf_with<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, s: [T; 3], parts: PaintParts) -> T {
         let total = s[0] + s[1] + s[2];
-        let mut p = s[0] * self.coat.reflection_pdf(wi, wo);
-        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-        let layer = s[1] * self.base.pdf(wi_in, wo_in) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
-        p += keep(lanes::gt(s[1], T::c(0.0)), layer);
-        p += s[2] * cosine_hemisphere_pdf(wi.z);
+        let mut p = if parts.coat { s[0] * self.coat.reflection_pdf(wi, wo) } else { T::c(0.0) };
+        if parts.pigment || parts.glossy {
+            let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+            let layer =
+                s[1] * self.base.pdf_parts(wi_in, wo_in, parts.base()) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
+            p += keep(lanes::gt(s[1], T::c(0.0)), layer);
+        }
+        if parts.pigment {
+            p += s[2] * cosine_hemisphere_pdf(wi.z);
+        }
         keep(lanes::gt(total, T::c(0.0)), p / total)
     }
 
-    /// Samples a direction (or the smooth coat's mirror delta) for `wo`, per lane.
+    /// The density of sampling restricted to `parts` ([`CoatedPaint::sample_parts`]).
     #[inline(always)]
-    pub(crate) fn sample_direction<T: Lanes>(&self, wo: Vec3<T>, u: [T; 3]) -> SampledDirection<T> {
-        let selection = self.selection(wo.z);
+    pub fn pdf_parts<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: PaintParts) -> T {
+        self.pdf_with(wi, wo, self.selection_parts(wo.z, parts), parts)
+    }
+
+    /// Samples a direction (or the smooth coat's mirror delta) for `wo`, per lane, choosing
+    /// among the lobes `parts` enables.
+    #[inline(always)]
+    pub(crate) fn sample_direction_parts<T: Lanes>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        parts: PaintParts,
+    ) -> SampledDirection<T> {
+        let selection = self.selection_parts(wo.z, parts);
         let pick = pick3(selection, u[0]);
         let [top, layer, multiple] = pick.lobe;
         // Each lobe's sampler runs only when some lane chose it (for one lane: only the
@@ -530,7 +607,7 @@ impl CoatedPaint {
         let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
         let (w_layer, layer_ok) = if layer.any() {
             let wo_in = self.coat.refract_in(wo);
-            let (wi_in, base_ok) = self.base.sample_direction_masked(wo_in, [pick.u, u[1], u[2]], layer);
+            let (wi_in, base_ok) = self.base.sample_direction_parts(wo_in, [pick.u, u[1], u[2]], layer, parts.base());
             let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
             (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
         } else {
@@ -550,7 +627,7 @@ impl CoatedPaint {
     }
 }
 
-/// A direction drawn by [`CoatedPaint::sample_direction`], per lane.
+/// A direction drawn by [`CoatedPaint::sample_direction_parts`], per lane.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SampledDirection<T: Lanes> {
     /// The direction.
@@ -561,6 +638,90 @@ pub(crate) struct SampledDirection<T: Lanes> {
     pub delta: T::Mask,
     /// The lobe-selection weights for `wo`.
     pub selection: [T; 3],
+}
+
+/// Which of the paint's lobes a call includes, from a lobe mask ([`crate::lobes::bits`]):
+/// `COAT` the clearcoat's top reflection (glossy, or the mirror delta of a smooth coat);
+/// `DIFFUSE` the pigment under the coat and the multiple-scatter lobe (light that bounced
+/// more than once inside the stack leaves diffusely); `GLOSSY` the basecoat's glossy lobes
+/// under the coat (metallic and pearlescent flakes, the metallic base).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PaintParts {
+    /// The top reflection of the clearcoat.
+    pub coat: bool,
+    /// The pigment and the multiple-scatter lobe.
+    pub pigment: bool,
+    /// The flakes and the metallic base.
+    pub glossy: bool,
+}
+
+impl PaintParts {
+    /// Every lobe (the plain `eval` / `pdf` / `sample`).
+    pub const ALL: Self = Self { coat: true, pigment: true, glossy: true };
+
+    /// The parts a lobe mask enables (other bits are ignored here; `Material::select_lobes`
+    /// rejects them).
+    #[inline(always)]
+    #[must_use]
+    pub fn of(lobes: u32) -> Self {
+        Self { coat: lobes & bits::COAT != 0, pigment: lobes & bits::DIFFUSE != 0, glossy: lobes & bits::GLOSSY != 0 }
+    }
+
+    /// The basecoat's share of these parts.
+    #[inline(always)]
+    #[must_use]
+    pub fn base(self) -> BaseParts {
+        BaseParts { pigment: self.pigment, glossy: self.glossy }
+    }
+}
+
+impl CoatedPaint {
+    /// The selectable lobe groups this paint has, as `(select bit, kind bits)` pairs
+    /// ([`crate::lobes::bits`]): the pigment / multiple-scatter lobe (`DIFFUSE`, when the
+    /// pigment or the multiple-scatter table is non-zero), the glossy base lobes (`GLOSSY`,
+    /// with flakes or a metallic base), the coat's top reflection (`COAT`: `GLOSSY`, or
+    /// `DELTA` for a smooth coat; absent for a coat of index 1).
+    #[must_use]
+    pub fn lobe_parts(&self) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        let b = &self.base;
+        let pigment = b.pigment.iter().any(|&x| x > 0.0) && (b.pigment_weight > 0.0 || b.pearl_coverage > 0.0);
+        let multiple = self.multiple.values().iter().any(|v| v.iter().any(|&x| x > 0.0));
+        if pigment || multiple {
+            out.push((bits::DIFFUSE, bits::DIFFUSE));
+        }
+        if b.has_glossy() {
+            out.push((bits::GLOSSY, bits::GLOSSY));
+        }
+        if self.coat.ior != 1.0 {
+            out.push((bits::COAT, if self.coat.is_smooth() { bits::DELTA } else { bits::GLOSSY }));
+        }
+        out
+    }
+
+    /// [`Bxdf::eval_at`] restricted to `parts`.
+    #[must_use]
+    pub fn eval_at_parts<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint, parts: PaintParts) -> Rgb<T> {
+        match &self.sparkle_layer {
+            Some(s) if at.is_finite() => self.eval_sparkle(s, wi, wo, at, parts),
+            _ => self.eval_parts(wi, wo, T::one(), T::one(), parts),
+        }
+    }
+
+    /// [`Bxdf::sample_at`] restricted to `parts` (the density is [`CoatedPaint::pdf_parts`]).
+    #[must_use]
+    pub fn sample_at_parts<T: Real>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        at: &SurfacePoint,
+        parts: PaintParts,
+    ) -> Option<BsdfSample<T>> {
+        match &self.sparkle_layer {
+            Some(_) if at.is_finite() => self.sample_with(wo, u, parts, |wi| self.eval_at_parts(wi, wo, at, parts)),
+            _ => self.sample_parts(wo, u, parts).into_option(),
+        }
+    }
 }
 
 /// Base-`b` radical inverse of `k` (Halton's sequence in base `b`).
@@ -673,14 +834,38 @@ impl LaneBxdf for CoatedPaint {
 
     #[inline(always)]
     fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
-        self.pdf_with(wi, wo, self.selection(wo.z))
+        self.pdf_with(wi, wo, self.selection(wo.z), PaintParts::ALL)
     }
 
     #[inline(always)]
     fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        let d = self.sample_direction(wo, u);
-        let f = self.eval_lanes(d.wi, wo);
-        let pdf = self.pdf_with(d.wi, wo, d.selection);
+        self.sample_parts(wo, u, PaintParts::ALL)
+    }
+
+    #[inline(always)]
+    fn eval_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
+        self.eval_parts(wi, wo, scale[0], scale[1], PaintParts::of(lobes))
+    }
+
+    #[inline(always)]
+    fn pdf_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
+        self.pdf_parts(wi, wo, PaintParts::of(lobes))
+    }
+
+    #[inline(always)]
+    fn sample_lobes_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
+        self.sample_parts(wo, u, PaintParts::of(lobes))
+    }
+}
+
+impl CoatedPaint {
+    /// A sample among the lobes `parts` enables (their selection weights renormalised; the
+    /// weight is the restricted `f · cos / pdf`); [`PaintParts::ALL`] is [`Bxdf::sample`].
+    #[inline(always)]
+    pub fn sample_parts<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], parts: PaintParts) -> LaneSample<L> {
+        let d = self.sample_direction_parts(wo, u, parts);
+        let f = self.eval_parts(d.wi, wo, L::c(1.0), L::c(1.0), parts);
+        let pdf = self.pdf_with(d.wi, wo, d.selection, parts);
         let s = LaneSample::from_eval(d.wi, f, pdf, d.valid & lanes::gt(d.wi.z, L::c(0.0)));
         if !self.coat.is_smooth() {
             return s;
@@ -716,14 +901,14 @@ impl Bxdf for CoatedPaint {
     #[inline]
     fn eval_at<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>, at: &SurfacePoint) -> Rgb<T> {
         match &self.sparkle_layer {
-            Some(s) if at.is_finite() => self.eval_sparkle(s, wi, wo, at),
+            Some(s) if at.is_finite() => self.eval_sparkle(s, wi, wo, at, PaintParts::ALL),
             _ => self.eval(wi, wo),
         }
     }
 
     fn sample_at<T: Real>(&self, wo: Vec3<T>, u: [T; 3], at: &SurfacePoint) -> Option<BsdfSample<T>> {
         match &self.sparkle_layer {
-            Some(_) if at.is_finite() => self.sample_with(wo, u, |wi| self.eval_at(wi, wo, at)),
+            Some(_) if at.is_finite() => self.sample_with(wo, u, PaintParts::ALL, |wi| self.eval_at(wi, wo, at)),
             _ => self.sample(wo, u),
         }
     }
@@ -962,7 +1147,7 @@ mod tests {
         let n = Vec3::new(0.0f64, 0.0, 1.0);
         let f0 = 0.04f64;
         let expect = (1.0 - f0).powi(2) / 2.25 / std::f64::consts::PI;
-        let got = p.layer_term(n, n, 1.0, 1.0);
+        let got = p.layer_term(n, n, 1.0, 1.0, PaintParts::ALL);
         assert!((got.r - expect).abs() < 1e-12, "{} vs {expect}", got.r);
     }
     /// `∫ f(wi, wo) cos θi dωi` by Gauss-Legendre product quadrature split at EON's kinks

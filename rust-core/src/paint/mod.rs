@@ -5,6 +5,8 @@ pub mod basecoat;
 pub mod coat;
 pub mod coated_paint;
 pub mod flakes;
+#[cfg(test)]
+mod lobe_tests;
 pub mod position_free_mc;
 pub mod rough_dielectric;
 pub mod sparkle;
