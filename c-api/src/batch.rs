@@ -9,6 +9,7 @@
 use crate::arrays::Batch;
 use crate::material::{lq_material, material};
 use crate::status::{guard, guard_value, lq_status, Failure};
+use lacquer_core::lobes::LobeSelection;
 use lacquer_core::{Material, Real, SurfacePoint, Vec3};
 use std::ffi::c_float;
 
@@ -873,7 +874,7 @@ pub unsafe extern "C" fn lq_sample_spatial(
 
 /// Checks one pointer to `K` values of `T` (NULL, alignment) without reading it.
 #[inline(always)]
-fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
+pub(crate) fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
     if p.is_null() {
         return Err(Failure::null(name));
     }
@@ -887,17 +888,25 @@ fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The lobe selection of a `_lobes` call (`Some(mask)`; a bad mask is the call's error) or of
+/// a plain call (`None`: every lobe, the plain path).
+pub(crate) fn select_lobes(m: &Material, lobes: Option<u32>) -> Result<LobeSelection, Failure> {
+    lobes.map_or(Ok(LobeSelection::All), |mask| m.select_lobes(mask).map_err(|e| Failure::invalid(e.to_string())))
+}
+
 /// Single-element eval and/or pdf. Inputs are read before outputs are written, through raw
 /// pointers: arrays may overlap (in place is fine), so no overlap check is needed.
-unsafe fn one_eval_pdf(
+pub(crate) unsafe fn one_eval_pdf(
     m: *const lq_material,
     wi: *const c_float,
     wo: *const c_float,
     f_rgb: Option<*mut c_float>,
     pdf: Option<*mut c_float>,
+    lobes: Option<u32>,
 ) -> Result<(), Failure> {
     // SAFETY: handle contract of the exported caller.
     let m: &Material = unsafe { material(m) }?;
+    let sel = select_lobes(m, lobes)?;
     check_ptr("wi", wi)?;
     check_ptr("wo", wo)?;
     if let Some(f) = f_rgb {
@@ -912,11 +921,11 @@ unsafe fn one_eval_pdf(
     let ok = valid(0, a, o, &Spatial { uv: None, duv: None }, &mut bad);
     // SAFETY: non-NULL, aligned, writable by the caller's contract; raw writes, no references.
     if let Some(f) = f_rgb {
-        let v = if ok { m.eval(a, o).to_array() } else { [0.0; 3] };
+        let v = if ok { m.eval_lobes(a, o, sel).to_array() } else { [0.0; 3] };
         unsafe { f.cast::<[c_float; 3]>().write(v) };
     }
     if let Some(p) = pdf {
-        let v = if ok { m.pdf(a, o) } else { 0.0 };
+        let v = if ok { m.pdf_lobes(a, o, sel) } else { 0.0 };
         unsafe { p.write(v) };
     }
     bad.finish(1)
@@ -936,7 +945,7 @@ pub unsafe extern "C" fn lq_eval_one(
     wo: *const c_float,
     f_rgb: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), None) })
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), None, None) })
 }
 
 /// `lq_pdf` for one element (`pdf` points to 1 float); see `lq_eval_one`.
@@ -951,7 +960,7 @@ pub unsafe extern "C" fn lq_pdf_one(
     wo: *const c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe { one_eval_pdf(m, wi, wo, None, Some(pdf)) })
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, None, Some(pdf), None) })
 }
 
 /// `lq_eval_pdf` for one element; see `lq_eval_one`.
@@ -967,7 +976,7 @@ pub unsafe extern "C" fn lq_eval_pdf_one(
     f_rgb: *mut c_float,
     pdf: *mut c_float,
 ) -> lq_status {
-    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), Some(pdf)) })
+    guard(|| unsafe { one_eval_pdf(m, wi, wo, Some(f_rgb), Some(pdf), None) })
 }
 
 /// `lq_sample_spatial` without uv for one element: `wo`, `u`, `wi`, `weight_rgb` point to 3
@@ -987,51 +996,64 @@ pub unsafe extern "C" fn lq_sample_one(
     pdf: *mut c_float,
     flags: *mut u32,
 ) -> lq_status {
-    guard(|| {
-        // SAFETY: handle contract above.
-        let m: &Material = unsafe { material(m) }?;
-        check_ptr("wo", wo)?;
-        check_ptr("u", u)?;
-        check_ptr("wi", wi.cast_const())?;
-        check_ptr("weight_rgb", weight_rgb.cast_const())?;
-        check_ptr("pdf", pdf.cast_const())?;
+    guard(|| unsafe { one_sample(m, wo, u, wi, weight_rgb, pdf, flags, None) })
+}
+
+/// `lq_sample_one` restricted to the lobe selection `lobes` (None: every lobe); the body of
+/// `lq_sample_one` and `lq_sample_one_lobes`.
+///
+/// # Safety
+/// As `lq_sample_one`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn one_sample(
+    m: *const lq_material,
+    wo: *const c_float,
+    u: *const c_float,
+    wi: *mut c_float,
+    weight_rgb: *mut c_float,
+    pdf: *mut c_float,
+    flags: *mut u32,
+    lobes: Option<u32>,
+) -> Result<(), Failure> {
+    // SAFETY: handle contract above.
+    let m: &Material = unsafe { material(m) }?;
+    let sel = select_lobes(m, lobes)?;
+    check_ptr("wo", wo)?;
+    check_ptr("u", u)?;
+    check_ptr("wi", wi.cast_const())?;
+    check_ptr("weight_rgb", weight_rgb.cast_const())?;
+    check_ptr("pdf", pdf.cast_const())?;
+    if !flags.is_null() {
+        check_ptr("flags", flags.cast_const())?;
+    }
+    // SAFETY: checked non-NULL and aligned; sizes by the caller's contract.
+    let (o, uu) = unsafe { (vec3(&wo.cast::<[c_float; 3]>().read()), u.cast::<[c_float; 3]>().read()) };
+    let mut bad = Invalid::default();
+    let ok = if !usable(o) {
+        bad.direction(0, "wo", o);
+        false
+    } else if !uu.iter().all(|&x| finite(x)) {
+        bad.other(0, "u", &uu);
+        false
+    } else {
+        true
+    };
+    let (w, f, p, flag) = match if ok { m.sample_lobes(o, uu, sel) } else { None } {
+        Some(s) => ([s.wi.x, s.wi.y, s.wi.z], s.weight.to_array(), s.pdf, if s.delta { LQ_SAMPLE_DELTA } else { 0 }),
+        None => {
+            ([0.0; 3], [0.0; 3], 0.0, if ok { LQ_SAMPLE_FAILED } else { LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT })
+        }
+    };
+    // SAFETY: checked non-NULL and aligned; raw writes, so overlapping arrays are fine.
+    unsafe {
+        wi.cast::<[c_float; 3]>().write(w);
+        weight_rgb.cast::<[c_float; 3]>().write(f);
+        pdf.write(p);
         if !flags.is_null() {
-            check_ptr("flags", flags.cast_const())?;
+            flags.write(flag);
         }
-        // SAFETY: checked non-NULL and aligned; sizes by the caller's contract.
-        let (o, uu) = unsafe { (vec3(&wo.cast::<[c_float; 3]>().read()), u.cast::<[c_float; 3]>().read()) };
-        let mut bad = Invalid::default();
-        let ok = if !usable(o) {
-            bad.direction(0, "wo", o);
-            false
-        } else if !uu.iter().all(|&x| finite(x)) {
-            bad.other(0, "u", &uu);
-            false
-        } else {
-            true
-        };
-        let (w, f, p, flag) = match if ok { m.sample(o, uu) } else { None } {
-            Some(s) => {
-                ([s.wi.x, s.wi.y, s.wi.z], s.weight.to_array(), s.pdf, if s.delta { LQ_SAMPLE_DELTA } else { 0 })
-            }
-            None => (
-                [0.0; 3],
-                [0.0; 3],
-                0.0,
-                if ok { LQ_SAMPLE_FAILED } else { LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT },
-            ),
-        };
-        // SAFETY: checked non-NULL and aligned; raw writes, so overlapping arrays are fine.
-        unsafe {
-            wi.cast::<[c_float; 3]>().write(w);
-            weight_rgb.cast::<[c_float; 3]>().write(f);
-            pdf.write(p);
-            if !flags.is_null() {
-                flags.write(flag);
-            }
-        }
-        bad.finish(1)
-    })
+    }
+    bad.finish(1)
 }
 
 // ---------------------------------------------------------------------------------------

@@ -15,8 +15,8 @@
 
 use crate::arrays::Batch;
 use crate::batch::{
-    active_mask, finite, report_failure, report_failure_sample, sample_out, soa_in, soa_out, usable, valid, vec3,
-    Invalid, Spatial,
+    active_mask, finite, one_eval_pdf, one_sample, report_failure, report_failure_sample, sample_out, soa_in, soa_out,
+    usable, valid, vec3, Invalid, Spatial,
 };
 use crate::material::{lq_material, material};
 use crate::status::{guard, Failure};
@@ -297,17 +297,6 @@ pub unsafe extern "C" fn lq_sample_lobes(
     })
 }
 
-/// Checks one pointer to 3 (or 1) values: non-NULL and aligned.
-fn check_ptr<T>(name: &'static str, p: *const T) -> Result<(), Failure> {
-    if p.is_null() {
-        return Err(Failure::null(name));
-    }
-    if !(p as usize).is_multiple_of(std::mem::align_of::<T>()) {
-        return Err(Failure::invalid(format!("array `{name}` is not aligned to {} bytes", std::mem::align_of::<T>())));
-    }
-    Ok(())
-}
-
 /// `lq_eval_pdf_one` restricted to the lobes of the mask `lobes`; `f_rgb` or `pdf` may be
 /// NULL (not both). Inputs are read before outputs are written (arrays may overlap).
 ///
@@ -324,35 +313,12 @@ pub unsafe extern "C" fn lq_eval_pdf_one_lobes(
     pdf: *mut c_float,
 ) -> lq_status {
     guard(|| {
-        // SAFETY: handle contract of the caller.
-        let m: &Material = unsafe { material(m) }?;
-        let sel = select(m, lobes)?;
-        check_ptr("wi", wi)?;
-        check_ptr("wo", wo)?;
         if f_rgb.is_null() && pdf.is_null() {
             return Err(Failure::null("f_rgb and pdf"));
         }
-        if !f_rgb.is_null() {
-            check_ptr("f_rgb", f_rgb.cast_const())?;
-        }
-        if !pdf.is_null() {
-            check_ptr("pdf", pdf.cast_const())?;
-        }
-        // SAFETY: non-NULL, aligned, 3 readable floats each (the caller's contract).
-        let (a, o) = unsafe { (vec3(&wi.cast::<[c_float; 3]>().read()), vec3(&wo.cast::<[c_float; 3]>().read())) };
-        let mut bad = Invalid::default();
-        let ok = valid(0, a, o, &Spatial::<c_float> { uv: None, duv: None }, &mut bad);
-        // SAFETY: non-NULL, aligned, writable (the caller's contract); raw writes.
-        unsafe {
-            if !f_rgb.is_null() {
-                let v = if ok { m.eval_lobes(a, o, sel).to_array() } else { [0.0; 3] };
-                f_rgb.cast::<[c_float; 3]>().write(v);
-            }
-            if !pdf.is_null() {
-                pdf.write(if ok { m.pdf_lobes(a, o, sel) } else { 0.0 });
-            }
-        }
-        bad.finish(1)
+        let some = |p: *mut c_float| (!p.is_null()).then_some(p);
+        // SAFETY: the caller's contract, as lq_eval_pdf_one's.
+        unsafe { one_eval_pdf(m, wi, wo, some(f_rgb), some(pdf), Some(lobes)) }
     })
 }
 
@@ -373,52 +339,8 @@ pub unsafe extern "C" fn lq_sample_one_lobes(
     pdf: *mut c_float,
     flags: *mut u32,
 ) -> lq_status {
-    guard(|| {
-        // SAFETY: handle contract of the caller.
-        let m: &Material = unsafe { material(m) }?;
-        let sel = select(m, lobes)?;
-        check_ptr("wo", wo)?;
-        check_ptr("u", u)?;
-        check_ptr("wi", wi.cast_const())?;
-        check_ptr("weight_rgb", weight_rgb.cast_const())?;
-        check_ptr("pdf", pdf.cast_const())?;
-        if !flags.is_null() {
-            check_ptr("flags", flags.cast_const())?;
-        }
-        // SAFETY: checked non-NULL and aligned; sizes by the caller's contract.
-        let (o, uu) = unsafe { (vec3(&wo.cast::<[c_float; 3]>().read()), u.cast::<[c_float; 3]>().read()) };
-        let mut bad = Invalid::default();
-        let ok = if !usable(o) {
-            bad.direction(0, "wo", o);
-            false
-        } else if !uu.iter().all(|&x| finite(x)) {
-            bad.other(0, "u", &uu);
-            false
-        } else {
-            true
-        };
-        let (w, f, p, flag) = match if ok { m.sample_lobes(o, uu, sel) } else { None } {
-            Some(s) => {
-                ([s.wi.x, s.wi.y, s.wi.z], s.weight.to_array(), s.pdf, if s.delta { LQ_SAMPLE_DELTA } else { 0 })
-            }
-            None => (
-                [0.0; 3],
-                [0.0; 3],
-                0.0,
-                if ok { LQ_SAMPLE_FAILED } else { LQ_SAMPLE_FAILED | LQ_SAMPLE_INVALID_INPUT },
-            ),
-        };
-        // SAFETY: checked non-NULL and aligned; raw writes, so overlapping arrays are fine.
-        unsafe {
-            wi.cast::<[c_float; 3]>().write(w);
-            weight_rgb.cast::<[c_float; 3]>().write(f);
-            pdf.write(p);
-            if !flags.is_null() {
-                flags.write(flag);
-            }
-        }
-        bad.finish(1)
-    })
+    // SAFETY: the caller's contract, as lq_sample_one's.
+    guard(|| unsafe { one_sample(m, wo, u, wi, weight_rgb, pdf, flags, Some(lobes)) })
 }
 
 /// `lq_eval_pdf_soa` restricted to the lobes of the mask `lobes`, through the SIMD kernels
