@@ -68,7 +68,7 @@ use crate::camera::Camera;
 use crate::env::Environment;
 use crate::geom::{v3, v3a, V3};
 use crate::lights::Light;
-use crate::perturb::{BumpMap, NormalMap, OrangePeel, Perturbation};
+use crate::perturb::{BumpMap, CoatNormal, NormalMap, OrangePeel, Perturbation};
 use crate::scene::{Scene, SceneBuilder};
 use crate::shapes::{Mesh, Quad, Sphere};
 use crate::texture::{Image, ImageDesc, PaintTextures, TexturesDesc};
@@ -261,6 +261,30 @@ pub struct MeshData {
     #[serde(default)]
     pub texture_uvs: Option<Packed<f32, 2>>,
     /// A bump map perturbing the shading normal (optional).
+    #[serde(default)]
+    pub bump: Option<BumpDesc>,
+    /// The clearcoat's own normal (optional): the paint is then shaded in two frames.
+    #[serde(default)]
+    pub coat_normal: Option<CoatNormalDesc>,
+}
+
+/// A mesh's clearcoat normal (`meshes.NAME.coat_normal`; [`crate::perturb::CoatNormal`]): its
+/// own normal map, bump and orange peel (the same fields as the mesh's), applied to the mesh's
+/// interpolated normal, or to its perturbed normal with `follows_normal`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoatNormalDesc {
+    /// Start from the mesh's perturbed normal (Blender: Coat Normal not connected, so the coat
+    /// follows Normal) instead of the interpolated one (default false: Coat Normal connected).
+    #[serde(default)]
+    pub follows_normal: bool,
+    /// The coat's tangent-space normal map.
+    #[serde(default)]
+    pub normal_map: Option<NormalMapDesc>,
+    /// Orange peel on the coat.
+    #[serde(default)]
+    pub orange_peel: Option<OrangePeelDesc>,
+    /// The coat's bump map.
     #[serde(default)]
     pub bump: Option<BumpDesc>,
 }
@@ -648,6 +672,7 @@ pub fn inline_mesh(
         uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
         triangles: triangles.to_vec(),
         perturb: None,
+        coat: None,
         texture_uvs: Vec::new(),
     })
 }
@@ -739,7 +764,8 @@ fn for_each_normal(mesh: &mut Mesh, f: impl Fn(V3) -> V3) {
     for n in &mut mesh.normals {
         *n = f(*n);
     }
-    if let Some((_, _, t, b)) = mesh.perturb.as_mut().and_then(|p| p.normal_map.as_mut()) {
+    let coat_map = mesh.coat.as_mut().and_then(|c| c.perturb.normal_map.as_mut());
+    for (_, _, t, b) in mesh.perturb.as_mut().and_then(|p| p.normal_map.as_mut()).into_iter().chain(coat_map) {
         for v in t.iter_mut().chain(b.iter_mut()) {
             *v = f(*v);
         }
@@ -822,6 +848,18 @@ impl SceneDesc {
             mesh.perturb =
                 perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref(), m.bump.as_ref())
                     .map_err(|e| format!("meshes.{k}: {e}"))?;
+            if let Some(c) = &m.coat_normal {
+                let n = mesh.positions.len();
+                let p = perturbation(n, c.normal_map.as_ref(), c.orange_peel.as_ref(), c.bump.as_ref())
+                    .map_err(|e| format!("meshes.{k}.coat_normal: {e}"))?;
+                // Nothing to perturb and following the mesh's normal: the coat is the base's.
+                if p.is_some() || !c.follows_normal {
+                    mesh.coat = Some(Box::new(CoatNormal {
+                        perturb: p.map(|b| *b).unwrap_or_default(),
+                        follows_normal: c.follows_normal,
+                    }));
+                }
+            }
             if let Some(t) = &m.texture_uvs {
                 if t.0.len() != mesh.positions.len() || t.0.iter().flatten().any(|v| !v.is_finite()) {
                     return Err(format!(

@@ -14,9 +14,10 @@
 
 use crate::camera::CameraRay;
 use crate::geom::{offset_origin, Frame, Ray, V3};
-use crate::scene::{Hit, Scene};
+use crate::scene::{CoatShading, Hit, Scene};
 use crate::texture::{PaintTextures, Texels};
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
+use lacquer::lobes::{bits, LobeSelection};
 use lacquer::paint::varying::PaintTexture;
 use lacquer::rng::Pcg32;
 use lacquer::{BsdfSample, Material, Rgb, SurfacePoint};
@@ -296,6 +297,9 @@ struct Vertex {
     path: u32,
     material: u32,
     frame: Frame,
+    /// The clearcoat's own frame, when the paint is shaded in two frames (`frame` is then the
+    /// base's; see [`shade_two_frames`]).
+    coat_frame: Option<Frame>,
     ng: V3,
     p: V3,
     wo: V3,
@@ -313,11 +317,13 @@ struct Shaded {
     f_light: C,
     pdf_light: f32,
     sample: Option<BsdfSample<f32>>,
+    /// `f_light` already holds `f · cos θ` (two frames: each part with its own cosine).
+    f_cos: bool,
 }
 
 impl Default for Shaded {
     fn default() -> Self {
-        Self { f_light: C::zero(), pdf_light: 0.0, sample: None }
+        Self { f_light: C::zero(), pdf_light: 0.0, sample: None, f_cos: false }
     }
 }
 
@@ -371,15 +377,27 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
 
         // Two-sided surfaces: turn the normals toward the viewer.
         let wo_world = -path.ray.d;
-        let (mut ng, mut ns) = (hit.surf.ng, hit.surf.ns);
+        let (mut ng, mut ns, mut coat_ns) = (hit.surf.ng, hit.surf.ns, hit.surf.coat_ns);
         if ng.dot(wo_world) < 0.0 {
             ng = -ng;
             ns = -ns;
+            coat_ns = coat_ns.map(|n| -n);
         }
         if ns.dot(wo_world) <= 0.0 {
             ns = ng;
         }
-        let frame = Frame::from_normal_tangent(ns, hit.surf.dpdu);
+        // The clearcoat's own normal (facing the viewer as `ns`): a second frame, or the only
+        // one for materials that cannot split their lobes ([`CoatShading`]).
+        let coat_ns = coat_ns.map(|n| if n.dot(wo_world) <= 0.0 { ng } else { n }).filter(|&n| n != ns);
+        let mut coat_frame = None;
+        let mut frame = Frame::from_normal_tangent(ns, hit.surf.dpdu);
+        if let Some(n) = coat_ns {
+            match scene.coat_shading[material as usize] {
+                CoatShading::TwoFrames { .. } => coat_frame = Some(Frame::from_normal_tangent(n, hit.surf.dpdu)),
+                CoatShading::CoatFrame => frame = Frame::from_normal_tangent(n, hit.surf.dpdu),
+                CoatShading::BaseFrame => {}
+            }
+        }
         let at = if path.depth == 0 && set.footprints { footprint(&path.cr, &hit) } else { None };
         if path.depth == 0 && set.aovs {
             path.value.normal = ns;
@@ -401,7 +419,8 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
             })
         });
         let u = rng.next3();
-        return Some(Vertex { path: 0, material, frame, ng, p, wo: frame.to_local(wo_world), at, light, u, texels });
+        let wo = frame.to_local(wo_world);
+        return Some(Vertex { path: 0, material, frame, coat_frame, ng, p, wo, at, light, u, texels });
     }
 }
 
@@ -409,12 +428,13 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
 /// `false` when the path ends here.
 fn finish(scene: &Scene, set: &RenderSettings, path: &mut Path, v: &Vertex, s: &Shaded, rng: &mut Sampler) -> bool {
     if let Some(l) = &v.light {
-        if l.wi.z > 0.0 && !s.f_light.is_black() {
+        let cos = if s.f_cos { 1.0 } else { l.wi.z };
+        if cos > 0.0 && !s.f_light.is_black() {
             let o = offset_origin(v.p, v.ng, l.wi_world);
             let tmax = if l.dist.is_finite() { l.dist * (1.0 - 1e-3) } else { f32::INFINITY };
             if !scene.occluded(&Ray { o, d: l.wi_world, tmax }) {
                 let w = if l.delta { 1.0 } else { power_heuristic(l.pl, s.pdf_light) };
-                path.value.radiance += path.beta * s.f_light * l.li * (l.wi.z * w / l.pl);
+                path.value.radiance += path.beta * s.f_light * l.li * (cos * w / l.pl);
             }
         }
     }
@@ -462,6 +482,8 @@ struct ShadeBuffers {
     at: Vec<SurfacePoint>,
     /// Textured parameters per vertex: red, green, blue, flake density, coat roughness.
     tex: [Vec<f32>; 5],
+    /// The vertices of a group shaded in one frame (when others have a coat frame).
+    one_frame: Vec<u32>,
 }
 
 impl ShadeBuffers {
@@ -499,6 +521,38 @@ fn dst3(v: &mut [Vec<f32>; 3]) -> Dst3<'_, f32> {
 /// per-element calls instead (`batch::eval_pdf_varying`, `sample_varying`: the mean lobe, no
 /// sparkle) with each vertex's texel values.
 fn shade_group(
+    mat: &Material,
+    textures: Option<&PaintTextures>,
+    coat: CoatShading,
+    vertices: &[Vertex],
+    group: &[u32],
+    buf: &mut ShadeBuffers,
+    out: &mut [Shaded],
+) {
+    // Vertices with a coat frame are shaded one by one in two frames, the others in batches.
+    if let CoatShading::TwoFrames { coat, base } = coat {
+        if group.iter().any(|&vi| vertices[vi as usize].coat_frame.is_some()) {
+            let mut one = std::mem::take(&mut buf.one_frame);
+            one.clear();
+            for &vi in group {
+                let v = &vertices[vi as usize];
+                match v.coat_frame {
+                    Some(cf) => out[vi as usize] = shade_two_frames(mat, coat, base, v, cf),
+                    None => one.push(vi),
+                }
+            }
+            if !one.is_empty() {
+                shade_batch(mat, textures, vertices, &one, buf, out);
+            }
+            buf.one_frame = one;
+            return;
+        }
+    }
+    shade_batch(mat, textures, vertices, group, buf, out);
+}
+
+/// The batch calls of [`shade_group`] for vertices shaded in one frame.
+fn shade_batch(
     mat: &Material,
     textures: Option<&PaintTextures>,
     vertices: &[Vertex],
@@ -545,6 +599,56 @@ fn shade_group(
             delta: flags & batch::SAMPLE_DELTA != 0,
         });
     }
+}
+
+/// A paint shaded in two frames (the clearcoat's own normal, as Cycles' Coat Normal): the lobes
+/// of `coat` (the top reflection) in the coat frame `cf`, those of `base` in the base frame
+/// `v.frame`. The value is the sum of the two parts, each with its own cosine:
+/// `f·cos = f_coat(wi_c, wo_c) cos θ_c + f_base(wi_b, wo_b) cos θ_b`. Sampling picks the coat
+/// part with probability `P_c = w_c / (w_c + w_b)` (the core's own lobe-selection weights of
+/// the two groups, [`Material::lobe_selection_weight`], each at its frame's `cos θo`: with equal
+/// frames exactly the core's selection) and samples it in its frame; the density is the
+/// mixture `P_c p_coat(wi_c) + (1 − P_c) p_base(wi_b)`, which light sampling's MIS weights use
+/// too, so next-event estimation and MIS stay unbiased. A delta coat sample (smooth coat) has
+/// the probability `P_c` and the weight `F / P_c`. The sample's direction is returned in the
+/// base frame, `f_light` as `f · cos` ([`Shaded::f_cos`]).
+fn shade_two_frames(mat: &Material, coat: LobeSelection, base: LobeSelection, v: &Vertex, cf: Frame) -> Shaded {
+    let bf = v.frame;
+    let wo_b = v.wo;
+    let wo_c = cf.to_local(bf.to_world(wo_b));
+    let mean = SurfacePoint { uv: [f64::NAN; 2], ..SurfacePoint::default() };
+    let at = v.at.unwrap_or(mean);
+    let weight = |cos: f32, mask: u32| mat.lobe_selection_weight(f64::from(cos), mask).unwrap_or(0.0).max(0.0);
+    let (w_c, w_b) = (weight(wo_c.z, bits::COAT), weight(wo_b.z, bits::DIFFUSE | bits::GLOSSY));
+    let p_c = if w_c + w_b > 0.0 { (w_c / (w_c + w_b)) as f32 } else { 0.0 };
+    let value = |wi_world: V3| -> (C, f32) {
+        let (wi_c, wi_b) = (cf.to_local(wi_world), bf.to_local(wi_world));
+        let f = mat.eval_at_lobes(wi_c, wo_c, &at, coat) * wi_c.z.max(0.0)
+            + mat.eval_at_lobes(wi_b, wo_b, &at, base) * wi_b.z.max(0.0);
+        let pdf = p_c * mat.pdf_lobes(wi_c, wo_c, coat) + (1.0 - p_c) * mat.pdf_lobes(wi_b, wo_b, base);
+        (f, pdf)
+    };
+    let mut out = Shaded { f_cos: true, ..Shaded::default() };
+    if let Some(l) = &v.light {
+        (out.f_light, out.pdf_light) = value(l.wi_world);
+    }
+    let [u0, u1, u2] = v.u;
+    let one_minus = 1.0 - f32::EPSILON / 2.0;
+    let (frame, wo, sel, p, u0) = if u0 < p_c {
+        (cf, wo_c, coat, p_c, (u0 / p_c).min(one_minus))
+    } else {
+        (bf, wo_b, base, 1.0 - p_c, ((u0 - p_c) / (1.0 - p_c)).min(one_minus))
+    };
+    out.sample = mat.sample_at_lobes(wo, [u0, u1, u2], &at, sel).and_then(|s| {
+        let wi_world = frame.to_world(s.wi);
+        let wi = bf.to_local(wi_world);
+        if s.delta {
+            return Some(BsdfSample { wi, weight: s.weight / p, pdf: s.pdf * p, delta: true });
+        }
+        let (f, pdf) = value(wi_world);
+        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, weight: f / pdf, pdf, delta: false })
+    });
+    out
 }
 
 /// The batch calls of an untextured material at the staged surface points (sparkle).
@@ -679,7 +783,8 @@ fn render_tile(
             for (mi, g) in groups.iter().enumerate() {
                 if !g.is_empty() {
                     let tex = scene.textures[mi].as_deref();
-                    shade_group(&scene.materials[mi], tex, &vertices, g, &mut buf, &mut shaded);
+                    let coat = scene.coat_shading[mi];
+                    shade_group(&scene.materials[mi], tex, coat, &vertices, g, &mut buf, &mut shaded);
                 }
             }
             next.clear();
@@ -903,3 +1008,6 @@ pub fn render(
 pub fn render_quiet(scene: &Scene, set: &RenderSettings) -> Framebuffer {
     render(scene, set, &mut |_| true).expect("not cancellable")
 }
+
+#[cfg(test)]
+mod coat_tests;
