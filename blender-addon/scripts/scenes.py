@@ -895,6 +895,16 @@ def artist_smoke(out: str, size: int) -> dict:
     rep["normal_map_messages"] = report.lines()
     passes("normalmap")
     tree.links.remove(node.inputs["Normal"].links[0])
+    # The same map on Coat Normal only: LACQUER shades the coat's reflection in the mapped frame
+    # and the paint under it in the plate's (two frames), as Cycles' Principled Coat Normal.
+    tree.links.new(nm.outputs["Normal"], node.inputs["Coat Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["coat_normal_exported"] = [sorted(m.get("coat_normal", {})) for m in job["scene"]["meshes"].values()]
+    rep["coat_normal_base_map"] = any("normal_map" in m for m in job["scene"]["meshes"].values())
+    rep["coat_normal_messages"] = report.lines()
+    passes("coatnormal")
+    tree.links.remove(node.inputs["Coat Normal"].links[0])
     # Image Texture (Non-Color heights, stripes along u) → Bump (Height) → Normal: the plate is
     # 0.04 units across its UV map, h = ½ + ½ sin(2π 4 u) has slope up to 2π·2/0.04 = 314 per
     # unit, × Distance 0.001: tilts up to atan(0.314) = 17°.
@@ -923,6 +933,10 @@ def artist_smoke(out: str, size: int) -> dict:
     mat.lacquer.orange_peel_wavelength = 8e-3
     rep["peel_node_inputs"] = [node.inputs["Orange Peel"].default_value,
                                node.inputs["Orange Peel Wavelength"].default_value]
+    job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+    rep["peel_exported"] = [{k: m["coat_normal"]["orange_peel"][k] for k in ("amplitude_um", "wavelength_mm")}
+                            | {"follows_normal": m["coat_normal"]["follows_normal"], "base_keys": sorted(m)}
+                            for m in job["scene"]["meshes"].values() if "coat_normal" in m]
     passes("peel")
     mat.lacquer.orange_peel = 0.0
     # The orange-peel waves' predicted RMS slope on this plane (the xy plane of the object):

@@ -606,6 +606,42 @@ def test_normal_map_on_the_normal_input_renders_in_both_engines(smokes):
     assert ang.mean() < 1.0 and np.percentile(ang, 99) < 3.0, FIGURES["normal_map"]
 
 
+def test_coat_normal_map_tilts_only_the_coat_in_both_engines(smokes):
+    """The normal map of test_normal_map_on_the_normal_input_renders_in_both_engines on the Lacquer
+    node's Coat Normal instead: LACQUER exports it as the coat's own normal (two frames; no map on
+    the base), its shading normal (Denoising Normal: the base's) stays the plain plate's, and its
+    image changes much less than with the map on Normal, because the map tilts only the coat's
+    reflection (of a uniform grey world here) and not the flakes and pigment under it. Cycles
+    (the node group's Principled Coat Normal) does the same: the ratio of the two changes is small
+    in both engines, and their per-pixel change maps agree."""
+    a = smokes["report"]["artist"]
+    d = smokes["dir"]
+    assert a["coat_normal_exported"] == [["follows_normal", "normal_map"]], a
+    assert not a["coat_normal_base_map"], a
+    _, tilt, mask = _normals_against_cycles_and_plain(d, "coatnormal")
+
+    def change(engine, tag):
+        img = luminance(read_exr(d / f"artist_{tag}_{engine}.exr")[..., :3])
+        plain = luminance(read_exr(d / f"artist_plain_{engine}.exr")[..., :3])
+        diff = (img - plain)[mask]
+        return float(np.abs(diff).mean() / plain[mask].mean()), diff
+
+    fig = {"base_tilt_deg_max": float(tilt.max())}
+    maps = {}
+    for engine in ("lacquer", "cycles"):
+        coat, maps[engine] = change(engine, "coatnormal")
+        whole, _ = change(engine, "normalmap")
+        fig[engine] = {"coat_normal_change": coat, "normal_change": whole, "ratio": coat / whole}
+    fig["change_map_correlation"] = float(np.corrcoef(maps["lacquer"], maps["cycles"])[0, 1])
+    FIGURES["coat_normal"] = fig
+    print(f"\nCoat Normal map: {fig}")
+    # Measured (bpy 4.5 / 5.0, 64², 16 spp): see FIGURES; the bounds below state the margins.
+    assert tilt.max() < 0.5, fig  # the base normal is untouched (LACQUER's normal pass)
+    for engine in ("lacquer", "cycles"):
+        assert fig[engine]["ratio"] < 0.5, fig
+    assert fig["lacquer"]["coat_normal_change"] > 0.002, fig
+
+
 def _half_means(path, cols):
     """Mean RGB and luminance of an EXR over pixel columns ``cols`` (every row)."""
     px = read_exr(path)[:, cols, :3].reshape(-1, 3).astype(np.float64)
@@ -692,28 +728,31 @@ def test_bump_node_on_the_normal_input_renders_in_both_engines(smokes):
 
 
 def test_orange_peel_tilts_the_coat_in_both_engines(smokes):
-    """Orange peel (50 µm RMS at 8 mm) on the plate: LACQUER's shading normals tilt with the RMS
-    slope the height field predicts, and both engines' images change."""
+    """Orange peel (50 µm RMS at 8 mm) on the plate: LACQUER exports it as the coat's own normal
+    (following Normal), so the paint's shading normal (Denoising Normal: the base's) stays the
+    plain plate's, as in Cycles where only the Coat Normal tilts; both engines' images change.
+    (The tilt itself against the height field's predicted RMS slope: the render crate's
+    perturb::tests::orange_peel_* and desc tests.)"""
     a = smokes["report"]["artist"]
     d = smokes["dir"]
     assert a["peel_node_inputs"] == [50.0, 8.0], a
+    assert a["peel_exported"] and all(
+        p["amplitude_um"] == 50.0 and p["wavelength_mm"] == 8.0 and p["follows_normal"]
+        and "orange_peel" not in p["base_keys"] for p in a["peel_exported"]), a
     peel_n, mask = _normals(d / "artist_peel_lacquer_normal.exr", d / "artist_peel_lacquer.exr")
     plain_n, _ = _normals(d / "artist_plain_lacquer_normal.exr", d / "artist_plain_lacquer.exr")
-    slope = np.tan(np.arccos(np.clip((peel_n * plain_n).sum(-1), -1, 1)))[mask]
-    rms = float(np.sqrt((slope ** 2).mean()))
+    tilt = np.degrees(np.arccos(np.clip((peel_n * plain_n).sum(-1), -1, 1)))[mask]
     changes = {}
     for engine in ("lacquer", "cycles"):
         on, off = read_exr(d / f"artist_peel_{engine}.exr"), read_exr(d / f"artist_plain_{engine}.exr")
         changes[engine] = float(np.abs(luminance(on[..., :3]) - luminance(off[..., :3]))[mask].mean()
                                 / luminance(off[..., :3])[mask].mean())
-    FIGURES["orange_peel"] = {"rms_slope": rms, "predicted": a["peel_predicted_rms_slope"], "image_change": changes}
-    print(f"\nOrange peel: RMS slope {rms:.4f} (predicted {a['peel_predicted_rms_slope']:.4f}); "
-          f"image change {changes}")
-    assert abs(rms / a["peel_predicted_rms_slope"] - 1.0) < 0.2, FIGURES["orange_peel"]
-    # Measured (bpy 4.5.15): LACQUER 2.5 %, Cycles 0.56 % of the mean luminance per pixel. In
-    # Cycles only the coat's normal tilts (Coat Normal) and this view sees no coat highlight; in
-    # LACQUER the paint has one shading frame, so flakes and base tilt too (README, limits).
-    assert changes["lacquer"] > 0.01 and changes["cycles"] > 0.002, FIGURES["orange_peel"]
+    FIGURES["orange_peel"] = {"base_tilt_deg_max": float(tilt.max()), "image_change": changes}
+    print(f"\nOrange peel: base normal tilt up to {tilt.max():.3f}°; image change {changes}")
+    assert tilt.max() < 0.5, FIGURES["orange_peel"]
+    # Measured: see FIGURES (README tests table); in both engines only the coat tilts and this
+    # view sees no coat highlight, so the change is small in both.
+    assert changes["lacquer"] > 0.002 and changes["cycles"] > 0.002, FIGURES["orange_peel"]
 
 
 def test_flake_scale_units_and_fit_text(smokes):

