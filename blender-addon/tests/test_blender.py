@@ -609,37 +609,41 @@ def test_normal_map_on_the_normal_input_renders_in_both_engines(smokes):
 def test_coat_normal_map_tilts_only_the_coat_in_both_engines(smokes):
     """The normal map of test_normal_map_on_the_normal_input_renders_in_both_engines on the Lacquer
     node's Coat Normal instead: LACQUER exports it as the coat's own normal (two frames; no map on
-    the base), its shading normal (Denoising Normal: the base's) stays the plain plate's, and its
-    image changes much less than with the map on Normal, because the map tilts only the coat's
-    reflection (of a uniform grey world here) and not the flakes and pigment under it. Cycles
-    (the node group's Principled Coat Normal) does the same: the ratio of the two changes is small
-    in both engines, and their per-pixel change maps agree."""
+    the base) and its shading normal (Denoising Normal: the base's) stays the plain plate's. The
+    image differs from the one with the map on Normal (flakes and pigment no longer tilt), and
+    it differs from it the way Cycles' (the node group's Principled Coat Normal) does: the
+    per-pixel maps of both changes (Coat Normal vs plain, Coat Normal vs Normal) correlate
+    between the engines. (The tilted coat's stripes catch the sun here, so the Coat Normal image
+    changes about as much as the Normal one in both engines.)"""
     a = smokes["report"]["artist"]
     d = smokes["dir"]
     assert a["coat_normal_exported"] == [["follows_normal", "normal_map"]], a
     assert not a["coat_normal_base_map"], a
     _, tilt, mask = _normals_against_cycles_and_plain(d, "coatnormal")
 
-    def change(engine, tag):
-        img = luminance(read_exr(d / f"artist_{tag}_{engine}.exr")[..., :3])
-        plain = luminance(read_exr(d / f"artist_plain_{engine}.exr")[..., :3])
-        diff = (img - plain)[mask]
-        return float(np.abs(diff).mean() / plain[mask].mean()), diff
+    def lum(engine, tag):
+        return luminance(read_exr(d / f"artist_{tag}_{engine}.exr")[..., :3])[mask].astype(np.float64)
 
     fig = {"base_tilt_deg_max": float(tilt.max())}
     maps = {}
     for engine in ("lacquer", "cycles"):
-        coat, maps[engine] = change(engine, "coatnormal")
-        whole, _ = change(engine, "normalmap")
-        fig[engine] = {"coat_normal_change": coat, "normal_change": whole, "ratio": coat / whole}
-    fig["change_map_correlation"] = float(np.corrcoef(maps["lacquer"], maps["cycles"])[0, 1])
+        plain, coat, whole = (lum(engine, t) for t in ("plain", "coatnormal", "normalmap"))
+        maps[engine] = (coat - plain, coat - whole)
+        fig[engine] = {"coat_vs_plain": float(np.abs(coat - plain).mean() / plain.mean()),
+                       "coat_vs_normal_input": float(np.abs(coat - whole).mean() / plain.mean()),
+                       "normal_input_vs_plain": float(np.abs(whole - plain).mean() / plain.mean())}
+    fig["correlation_coat_vs_plain"] = float(np.corrcoef(maps["lacquer"][0], maps["cycles"][0])[0, 1])
+    fig["correlation_coat_vs_normal_input"] = float(np.corrcoef(maps["lacquer"][1], maps["cycles"][1])[0, 1])
     FIGURES["coat_normal"] = fig
     print(f"\nCoat Normal map: {fig}")
-    # Measured (bpy 4.5 / 5.0, 64², 16 spp): see FIGURES; the bounds below state the margins.
+    # Measured on bpy 4.5.15 (64², 16 spp): base tilt 0.0°; LACQUER's Coat Normal image differs
+    # from its Normal image by 16.8 % of the plain mean per pixel (Cycles 13.1 %; the one-frame
+    # paint before this test gave 0: the map tilted the whole paint); change-map correlations
+    # between the engines 0.959 (vs plain) and 0.986 (vs Normal).
     assert tilt.max() < 0.5, fig  # the base normal is untouched (LACQUER's normal pass)
-    for engine in ("lacquer", "cycles"):
-        assert fig[engine]["ratio"] < 0.5, fig
-    assert fig["lacquer"]["coat_normal_change"] > 0.002, fig
+    assert fig["lacquer"]["coat_vs_normal_input"] > 0.08, fig
+    assert 0.5 < fig["lacquer"]["coat_vs_normal_input"] / fig["cycles"]["coat_vs_normal_input"] < 2.0, fig
+    assert fig["correlation_coat_vs_plain"] > 0.9 and fig["correlation_coat_vs_normal_input"] > 0.9, fig
 
 
 def _half_means(path, cols):
@@ -750,9 +754,11 @@ def test_orange_peel_tilts_the_coat_in_both_engines(smokes):
     FIGURES["orange_peel"] = {"base_tilt_deg_max": float(tilt.max()), "image_change": changes}
     print(f"\nOrange peel: base normal tilt up to {tilt.max():.3f}°; image change {changes}")
     assert tilt.max() < 0.5, FIGURES["orange_peel"]
-    # Measured: see FIGURES (README tests table); in both engines only the coat tilts and this
-    # view sees no coat highlight, so the change is small in both.
+    # Measured (bpy 4.5.15): base tilt 0.000°; image change LACQUER 0.50 %, Cycles 0.57 % of the
+    # mean luminance per pixel (in both engines only the coat tilts and this view sees no coat
+    # highlight; with the one-frame paint LACQUER changed by 2.5 %).
     assert changes["lacquer"] > 0.002 and changes["cycles"] > 0.002, FIGURES["orange_peel"]
+    assert 0.5 < changes["lacquer"] / changes["cycles"] < 2.0, FIGURES["orange_peel"]
 
 
 def test_flake_scale_units_and_fit_text(smokes):
