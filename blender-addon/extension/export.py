@@ -275,6 +275,9 @@ def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: R
             textures, uv_map = bindings(mat)
             if textures:
                 extra["texture_uvs"] = _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)
+                if "coat_normal" in extra:
+                    report.warn(f"material \"{mat.name}\": a textured paint shades in one frame in LACQUER: "
+                                f"Coat Normal / orange peel tilt the whole paint there")
         if extra:
             out[idx] = extra
     return out

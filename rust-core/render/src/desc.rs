@@ -1231,6 +1231,14 @@ mod tests {
         let bad =
             r#", "orange_peel": {"amplitude_um": 1, "wavelength_mm": 0, "coords": [[0,0,0],[0,0,0],[0,0,0],[0,0,0]]}"#;
         assert!(render_job(&job(bad), &mut |_| true).is_err());
+        // A coat normal: the tilted map on `coat_normal` only. A Lambert surface has no
+        // clearcoat, so it keeps the base frame (the plain value exactly); bad arrays there are
+        // errors naming `coat_normal`. (Two-frame shading: `integrator::coat_tests`.)
+        let coat = |m: &str| format!(r#", "coat_normal": {{"follows_normal": false {m}}}"#);
+        let kept = centre(&render_job(&job(&coat(&map("[0.75, 0.5, 0.9]", 4))), &mut |_| true).unwrap());
+        assert!(kept == plain, "{kept} vs {plain}");
+        let err = render_job(&job(&coat(&map("[0.5, 0.5, 1.0]", 3))), &mut |_| true).unwrap_err();
+        assert!(format!("{err:?}").contains("coat_normal: normal_map: uvs"), "{err:?}");
     }
 
     #[test]
