@@ -41,6 +41,8 @@ pub struct RenderSettings {
     pub threads: usize,
     /// Also produce albedo and normal layers.
     pub aovs: bool,
+    /// Also produce the Diffuse Color and Glossy Color layers ([`Framebuffer::diffuse_color`]).
+    pub lobe_aovs: bool,
     /// Give camera-ray hits their pixel footprint (`eval_at`/`sample_at`: sparkle).
     pub footprints: bool,
     /// Depth from which Russian roulette may end paths.
@@ -64,6 +66,7 @@ impl Default for RenderSettings {
             tile_size: 32,
             threads: 0,
             aovs: true,
+            lobe_aovs: false,
             footprints: true,
             rr_depth: 3,
             clamp: 0.0,
@@ -89,6 +92,13 @@ pub struct Framebuffer {
     pub albedo: Option<Vec<[f32; 3]>>,
     /// World-space shading normal of the first surface, if requested.
     pub normal: Option<Vec<[f32; 3]>>,
+    /// Diffuse Color (as Cycles' pass): the directional albedo of the first surface's diffuse
+    /// lobe group (lobe mask `DIFFUSE`: pigment and multiple scattering), estimated by one
+    /// `sample_lobes` weight per camera sample, if requested ([`RenderSettings::lobe_aovs`]).
+    pub diffuse_color: Option<Vec<[f32; 3]>>,
+    /// Glossy Color: the same for the glossy groups (`GLOSSY | COAT`: flakes, metallic base,
+    /// the clearcoat's reflection).
+    pub glossy_color: Option<Vec<[f32; 3]>>,
     /// How the render went.
     pub stats: RenderStats,
 }
@@ -118,6 +128,8 @@ impl Framebuffer {
             alpha: vec![0.0; n],
             albedo: aovs.then(|| vec![[0.0; 3]; n]),
             normal: aovs.then(|| vec![[0.0; 3]; n]),
+            diffuse_color: None,
+            glossy_color: None,
             stats: RenderStats::default(),
         }
     }
@@ -190,6 +202,8 @@ struct PathValue {
     alpha: f32,
     albedo: C,
     normal: V3,
+    /// Diffuse and glossy colour of the first hit ([`RenderSettings::lobe_aovs`]).
+    lobe_colors: [C; 2],
 }
 
 /// The uv footprint of a camera ray's pixel, for its hit (pbrt's approach: intersect the
@@ -261,7 +275,13 @@ impl Path {
             depth: 0,
             passed: 0.0,
             passes: 0,
-            value: PathValue { radiance: C::zero(), alpha: 0.0, albedo: C::zero(), normal: V3::zero() },
+            value: PathValue {
+                radiance: C::zero(),
+                alpha: 0.0,
+                albedo: C::zero(),
+                normal: V3::zero(),
+                lobe_colors: [C::zero(); 2],
+            },
         }
     }
 
@@ -308,6 +328,8 @@ struct Vertex {
     u: [f32; 3],
     /// The material's textured parameters at the hit ([`crate::texture`]), if it has any.
     texels: Option<Texels>,
+    /// A camera hit whose Diffuse/Glossy Color is wanted.
+    lobe_aov: bool,
 }
 
 /// What the material returned for a vertex.
@@ -325,6 +347,30 @@ impl Default for Shaded {
     fn default() -> Self {
         Self { f_light: C::zero(), pdf_light: 0.0, sample: None, f_cos: false }
     }
+}
+
+/// The lobe masks of the Diffuse Color and Glossy Color layers for a material: `DIFFUSE` and
+/// `GLOSSY | COAT` when it separates them; otherwise everything in the layer of its kind
+/// (a diffuse-only model in Diffuse Color, any other in Glossy Color).
+fn lobe_color_selections(m: &Material) -> [LobeSelection; 2] {
+    match (m.select_lobes(bits::DIFFUSE), m.select_lobes(bits::GLOSSY | bits::COAT)) {
+        (Ok(d), Ok(g)) => [d, g],
+        _ if m.lobes() & (bits::GLOSSY | bits::DELTA) == 0 => [LobeSelection::All, LobeSelection::Nothing],
+        _ => [LobeSelection::Nothing, LobeSelection::All],
+    }
+}
+
+/// One estimate of the Diffuse Color and Glossy Color of a camera hit: each lobe group's
+/// sampled weight (`f·cos/pdf` of the group alone; its mean over samples is the group's
+/// directional albedo at `wo`), drawn with the vertex's own numbers (no random stream is
+/// consumed) in the base frame.
+fn lobe_colors(m: &Material, v: &Vertex) -> [C; 2] {
+    let mean = SurfacePoint { uv: [f64::NAN; 2], ..SurfacePoint::default() };
+    let at = v.at.unwrap_or(mean);
+    lobe_color_selections(m).map(|sel| match sel {
+        LobeSelection::Nothing => C::zero(),
+        sel => m.sample_at_lobes(v.wo, v.u, &at, sel).map_or(C::zero(), |s| s.weight),
+    })
 }
 
 /// Moves a path to its next vertex that needs the material (`None`: the path ended),
@@ -420,13 +466,17 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
         });
         let u = rng.next3();
         let wo = frame.to_local(wo_world);
-        return Some(Vertex { path: 0, material, frame, coat_frame, ng, p, wo, at, light, u, texels });
+        let lobe_aov = path.depth == 0 && set.lobe_aovs;
+        return Some(Vertex { path: 0, material, frame, coat_frame, ng, p, wo, at, light, u, texels, lobe_aov });
     }
 }
 
 /// Adds the vertex's light sample and continues the path with the material's sample;
 /// `false` when the path ends here.
 fn finish(scene: &Scene, set: &RenderSettings, path: &mut Path, v: &Vertex, s: &Shaded, rng: &mut Sampler) -> bool {
+    if v.lobe_aov {
+        path.value.lobe_colors = lobe_colors(&scene.materials[v.material as usize], v);
+    }
     if let Some(l) = &v.light {
         let cos = if s.f_cos { 1.0 } else { l.wi.z };
         if cos > 0.0 && !s.f_light.is_black() {
@@ -706,6 +756,8 @@ struct PixelState {
     a: f64,
     al: [f64; 3],
     n: [f64; 3],
+    /// Sums of the Diffuse Color and Glossy Color estimates.
+    lc: [[f64; 3]; 2],
 }
 
 impl PixelState {
@@ -716,6 +768,7 @@ impl PixelState {
             a: 0.0,
             al: [0.0; 3],
             n: [0.0; 3],
+            lc: [[0.0; 3]; 2],
         }
     }
 
@@ -813,6 +866,13 @@ fn render_tile(
                 st.c[k] += r[k] as f64;
             }
             st.a += v.alpha as f64;
+            if set.lobe_aovs && v.lobe_colors.iter().all(|c| c.is_finite()) {
+                for (sum, c) in st.lc.iter_mut().zip(&v.lobe_colors) {
+                    for k in 0..3 {
+                        sum[k] += c[k] as f64;
+                    }
+                }
+            }
             if set.aovs && v.albedo.is_finite() {
                 for (k, nk) in [v.normal.x, v.normal.y, v.normal.z].into_iter().enumerate() {
                     st.al[k] += v.albedo[k] as f64;
@@ -976,6 +1036,12 @@ impl Progressive {
             }
             if let Some(v) = fb.normal.as_mut() {
                 v[i] = n;
+            }
+            if self.set.lobe_aovs {
+                let inv = 1.0 / self.samples.max(1) as f64;
+                let [d, g] = st.lc.map(|c| c.map(|x| (x * inv) as f32));
+                fb.diffuse_color.get_or_insert_with(Vec::new).push(d);
+                fb.glossy_color.get_or_insert_with(Vec::new).push(g);
             }
         }
         let paths = self.width as u64 * self.height as u64 * self.samples as u64;
