@@ -627,6 +627,32 @@ def engine_smoke(out: str, size: int) -> dict:
         compositor(scene, name, denoise=False)
         render(scene, "LACQUER", os.path.join(out, f"engine_{tag}.exr"))
     disable_compositor(scene)
+    # Diffuse Color and Glossy Color (the view layer's Cycles flags): gold_flake_8, then the
+    # solid red (no flakes: its glossy colour is the clearcoat's reflection alone), each pass
+    # through the compositor; Combined of a one-bounce render in a uniform world (no lamp)
+    # for the Diffuse + Glossy = Combined check.
+    vl = scene.view_layers[0]
+    vl.use_pass_diffuse_color = vl.use_pass_glossy_color = True
+    lamps = [o for o in scene.objects if o.type == "LIGHT"]
+    for o in lamps:
+        o.hide_render = True
+    depth = scene.lacquer.max_depth
+    scene.lacquer.max_depth = 1
+    rep["lobe_passes"] = {}
+    ball = next(o for o in scene.objects if o.type == "MESH")
+    for preset in ("gold_flake_8", "solid_red"):
+        assign(ball, preset)
+        for name in ("DiffCol", "GlossCol"):
+            compositor(scene, name, denoise=False)
+            render(scene, "LACQUER", os.path.join(out, f"engine_{preset}_{name}.exr"))
+        disable_compositor(scene)
+        render(scene, "LACQUER", os.path.join(out, f"engine_{preset}_lobes_combined.exr"))
+        rep["lobe_passes"][preset] = dict(engine.LAST_RENDER)
+    for o in lamps:
+        o.hide_render = False
+    vl.use_pass_diffuse_color = vl.use_pass_glossy_color = False
+    assign(ball, "gold_flake_8")
+    scene.lacquer.max_depth = depth
     # The Denoise node on LACQUER's passes (noisy input at 4 spp), sparkle off: per-pixel flake
     # glints are image detail a denoiser should not be judged on; the MC noise of the mean lobe is.
     scene.lacquer.samples = 4
