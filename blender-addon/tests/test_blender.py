@@ -460,9 +460,9 @@ def test_diffuse_and_glossy_color_passes(smokes):
     FIGURES["lobe_passes"] = fig
     print(f"\nDiffuse/Glossy Color: {fig}")
     # Measured (bpy 4.5.15, 64², 16 spp): Combined vs 0.5 (D + G) within 1.7 % per channel (the
-    # render crate's test: 0.9 %; Combined is higher by ~0.001 everywhere); tolerance 3 %. Glossy Color: solid_red 0.074 grey (the
-    # coat), gold_flake_8 0.119 grey (the coat and the aluminium flakes); Diffuse Color of
-    # solid_red (0.229, 0.008, 0.008).
+    # render crate's test: 0.9 %; Combined is higher by ~0.001 everywhere); tolerance 3 %.
+    # Glossy Color: solid_red 0.074 grey (the coat), gold_flake_8 0.119 grey (the coat and the
+    # aluminium flakes); Diffuse Color of solid_red (0.229, 0.008, 0.008).
     for preset, f in fig.items():
         for k in range(3):
             assert abs(f["combined"][k] - f["half_diffuse_plus_glossy"][k]) < 0.03 * f["combined"][k], (preset, f)
