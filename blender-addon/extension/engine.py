@@ -16,8 +16,20 @@ from . import export, viewport
 
 #: Passes the engine fills besides Combined: (name, channels, chan_id, type). The albedo and
 #: normal are the first hit's (the core's AOVs), in Blender's world space: what the compositor's
-#: Denoise node (OIDN) takes. The core does not split diffuse and glossy light, so no such passes.
+#: Denoise node (OIDN) takes.
 PASSES = (("Denoising Albedo", 3, "RGB", "COLOR"), ("Denoising Normal", 3, "XYZ", "VECTOR"))
+
+#: Colour passes declared when the view layer enables them (Cycles' names and flags): the first
+#: hit's diffuse and glossy lobe groups' directional albedo (the job's "lobe_aovs": the mean of
+#: the core's per-lobe sample weights; glossy = flakes, metallic base and the clearcoat).
+#: (pass name, view layer flag, lacquer image key).
+LOBE_PASSES = (("DiffCol", "use_pass_diffuse_color", "diffuse_color"),
+               ("GlossCol", "use_pass_glossy_color", "glossy_color"))
+
+
+def lobe_passes(view_layer) -> list:
+    """The colour passes (:data:`LOBE_PASSES`) a view layer asks for."""
+    return [p for p in LOBE_PASSES if view_layer is not None and getattr(view_layer, p[1], False)]
 
 #: What the last final render did (rounds shown with update_result, passes written, whether it
 #: was cancelled, spp reached); read by the tests and useful from the Python console.
@@ -83,6 +95,8 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         for name, channels, chan_id, kind in PASSES:
             self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for name, _, _ in lobe_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
 
     def render(self, depsgraph):
         scene = depsgraph.scene
@@ -95,6 +109,8 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
             job = export.job(depsgraph, report, temp_files, preview=self.is_preview)
             job["transparent"] = bool(scene.render.film_transparent)
             job["aovs"] = not self.is_preview
+            lobes = [] if self.is_preview else lobe_passes(depsgraph.view_layer)
+            job["lobe_aovs"] = bool(lobes)
             for line in report.lines():
                 print(f"Lacquer: {line}")
                 if not self.is_preview:
@@ -170,6 +186,7 @@ class LacquerRenderEngine(bpy.types.RenderEngine):
         layer.passes["Combined"].rect.foreach_set(_native_floats(rgba))
         written = ["Combined"]
         extra = {"Denoising Albedo": img.get("albedo"), "Denoising Normal": img.get("normal")}
+        extra.update({name: img.get(key) for name, _, key in LOBE_PASSES})
         for name, data in extra.items():
             p = layer.passes.find(name) if hasattr(layer.passes, "find") else -1
             if data is None or p < 0:

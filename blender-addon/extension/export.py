@@ -140,26 +140,39 @@ def _linked_from(sock):
     return node
 
 
-def normal_source(mat, report: Report):
-    """The Normal Map node (tangent space, fed by an Image Texture) connected to the Lacquer
-    node's Normal (or Coat Normal) input: ``(image, uv_map, strength)``, or None with a message
-    for anything LACQUER cannot follow."""
+def _lacquer_node(mat):
+    """The material's Lacquer node, or None."""
     from . import nodegroup
 
-    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+    return mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+
+
+def coat_normal_mode(mat) -> str:
+    """How the coat's normal relates to Normal in the node group (the Principled BSDF's Coat
+    Normal): ``"follows"`` (Coat Normal not connected, or connected to what Normal is: the coat
+    follows Normal, then orange peel tilts it) or ``"own"`` (its own normal map or bump, which
+    replaces Normal for the coat; LACQUER then shades the paint in two frames)."""
+    node = _lacquer_node(mat)
+    if node is None:
+        return "follows"
+    coat = _link_from(node.inputs.get("Coat Normal"))
+    if coat is None or coat == _link_from(node.inputs.get("Normal")):
+        return "follows"
+    return "own"
+
+
+def normal_source(mat, report: Report, input_name: str = "Normal"):
+    """The Normal Map node (tangent space, fed by an Image Texture) connected to the Lacquer
+    node's ``input_name`` input (Normal or Coat Normal): ``(image, uv_map, strength)``, or None
+    with a message for anything LACQUER cannot follow."""
+    node = _lacquer_node(mat)
     if node is None:
         return None
-    src = _linked_from(node.inputs.get("Normal"))
-    coat = _linked_from(node.inputs.get("Coat Normal"))
-    if src is None and coat is not None:
-        src = coat  # LACQUER's paint has one shading frame: the coat's map tilts the whole paint
-        report.warn(f"material \"{mat.name}\": Coat Normal tilts the whole paint in LACQUER (one shading frame)")
-    elif src is not None and coat is not None and coat != src:
-        report.warn(f"material \"{mat.name}\": Coat Normal differs from Normal: LACQUER uses Normal for both")
+    src = _linked_from(node.inputs.get(input_name))
     if src is None or src.bl_idname == "ShaderNodeBump":  # a Bump node: bump_source
         return None
     if src.bl_idname != "ShaderNodeNormalMap" or src.space != "TANGENT":
-        report.warn(f"material \"{mat.name}\": the Normal input comes from {src.bl_idname}"
+        report.warn(f"material \"{mat.name}\": the {input_name} input comes from {src.bl_idname}"
                     f"{' (' + src.space.lower() + ' space)' if src.bl_idname == 'ShaderNodeNormalMap' else ''}; "
                     f"LACQUER follows a tangent-space Normal Map node fed by an Image Texture (ignored)")
         return None
@@ -175,16 +188,15 @@ def normal_source(mat, report: Report):
     return tex.image, src.uv_map, float(src.inputs["Strength"].default_value)
 
 
-def bump_source(mat, report: Report):
-    """The Bump node (its Height fed by an Image Texture) connected to the Lacquer node's Normal
-    (or Coat Normal) input: ``(texture node, output name, uv_map, strength, distance)`` with the
-    distance negated by Invert, or None with a message for anything LACQUER cannot follow."""
-    from . import nodegroup
-
-    node = mat.node_tree.nodes.get(nodegroup.NODE_NAME) if getattr(mat, "node_tree", None) else None
+def bump_source(mat, report: Report, input_name: str = "Normal"):
+    """The Bump node (its Height fed by an Image Texture) connected to the Lacquer node's
+    ``input_name`` input (Normal or Coat Normal): ``(texture node, output name, uv_map, strength,
+    distance)`` with the distance negated by Invert, or None with a message for anything LACQUER
+    cannot follow."""
+    node = _lacquer_node(mat)
     if node is None:
         return None
-    src = _linked_from(node.inputs.get("Normal")) or _linked_from(node.inputs.get("Coat Normal"))
+    src = _linked_from(node.inputs.get(input_name))
     if src is None or src.bl_idname != "ShaderNodeBump":
         return None
     height = _link_from(src.inputs["Height"])
@@ -247,43 +259,60 @@ def perturb_arrays(mesh, arrays: dict, materials: list, unit_m: float, report: R
         settings = getattr(mat, "lacquer", None) if mat is not None else None
         if settings is None or not settings.enabled:
             continue
-        extra = {}
-        src = normal_source(mat, report)
-        if src is not None:
-            image, uv_map, strength = src
-            try:
-                uv, t, bt = _tangent_arrays(mesh, uv_map, arrays["loops"])
-                if image.name not in images:
-                    images[image.name] = _image_rgb(image)
-                w, h, rgb = images[image.name]
-                extra["normal_map"] = {"width": w, "height": h, "pixels": rgb, "strength": strength,
-                                       "uvs": uv, "tangents": t, "bitangents": bt}
-            except (RuntimeError, ValueError) as e:
-                report.warn(f"material \"{mat.name}\": normal map not exported ({e})")
-        bump = bump_source(mat, report)
-        if bump is not None:
-            tex, out_name, uv_map, strength, distance = bump
-            try:
-                if ("rgba", tex.image.name) not in images:
-                    images[("rgba", tex.image.name)] = _image_rgba(tex.image)
-                w, h, rgb, alpha = images[("rgba", tex.image.name)]
-                heights = alpha if out_name == "Alpha" else rgb @ GREY  # Cycles' colour → float
-                extra["bump"] = {"width": w, "height": h, "pixels": heights.astype(np.float32),
-                                 "strength": strength, "distance": distance,
-                                 "uvs": _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)}
-            except (RuntimeError, ValueError) as e:
-                report.warn(f"material \"{mat.name}\": bump map not exported ({e})")
+        extra = _normal_arrays(mesh, arrays, mat, report, images, "Normal")
+        # The coat's own normal (Coat Normal, orange peel on the coat): LACQUER shades the
+        # clearcoat's reflection in its frame, the paint under it in Normal's (two frames).
+        coat = {"follows_normal": True}
+        if coat_normal_mode(mat) == "own":
+            coat = dict(_normal_arrays(mesh, arrays, mat, report, images, "Coat Normal"), follows_normal=False)
         if settings.orange_peel > 0.0:
-            extra["orange_peel"] = {"amplitude_um": props.core_value(settings, "orange_peel_um"),
-                                    "wavelength_mm": props.core_value(settings, "orange_peel_wavelength_mm"),
-                                    "metres_per_unit": unit_m, "coords": arrays["coords"]}
+            coat["orange_peel"] = {"amplitude_um": props.core_value(settings, "orange_peel_um"),
+                                   "wavelength_mm": props.core_value(settings, "orange_peel_wavelength_mm"),
+                                   "metres_per_unit": unit_m, "coords": arrays["coords"]}
+        if len(coat) > 1 or not coat["follows_normal"]:
+            extra["coat_normal"] = coat
         if bindings is not None:
             textures, uv_map = bindings(mat)
             if textures:
                 extra["texture_uvs"] = _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)
+                if "coat_normal" in extra:
+                    report.warn(f"material \"{mat.name}\": a textured paint shades in one frame in LACQUER: "
+                                f"Coat Normal / orange peel tilt the whole paint there")
         if extra:
             out[idx] = extra
     return out
+
+
+def _normal_arrays(mesh, arrays: dict, mat, report: Report, images: dict, input_name: str) -> dict:
+    """The normal map and bump map connected to the Lacquer node's ``input_name`` input (Normal
+    or Coat Normal), as the scene format's per-corner arrays (before selecting a part's corners)."""
+    extra = {}
+    src = normal_source(mat, report, input_name)
+    if src is not None:
+        image, uv_map, strength = src
+        try:
+            uv, t, bt = _tangent_arrays(mesh, uv_map, arrays["loops"])
+            if image.name not in images:
+                images[image.name] = _image_rgb(image)
+            w, h, rgb = images[image.name]
+            extra["normal_map"] = {"width": w, "height": h, "pixels": rgb, "strength": strength,
+                                   "uvs": uv, "tangents": t, "bitangents": bt}
+        except (RuntimeError, ValueError) as e:
+            report.warn(f"material \"{mat.name}\": normal map not exported ({e})")
+    bump = bump_source(mat, report, input_name)
+    if bump is not None:
+        tex, out_name, uv_map, strength, distance = bump
+        try:
+            if ("rgba", tex.image.name) not in images:
+                images[("rgba", tex.image.name)] = _image_rgba(tex.image)
+            w, h, rgb, alpha = images[("rgba", tex.image.name)]
+            heights = alpha if out_name == "Alpha" else rgb @ GREY  # Cycles' colour → float
+            extra["bump"] = {"width": w, "height": h, "pixels": heights.astype(np.float32),
+                             "strength": strength, "distance": distance,
+                             "uvs": _uv_array(mesh, uv_map, arrays["loops"], report, mat.name)}
+        except (RuntimeError, ValueError) as e:
+            report.warn(f"material \"{mat.name}\": bump map not exported ({e})")
+    return extra
 
 
 def _select_perturb(extra: dict, corner) -> dict:
@@ -305,6 +334,10 @@ def _select_perturb(extra: dict, corner) -> dict:
         out["bump"] = {"width": m["width"], "height": m["height"], "pixels": _b64(m["pixels"], np.float32),
                        "strength": m["strength"], "distance": m["distance"],
                        "uvs": _b64(m["uvs"][corner], np.float32)}
+    if "coat_normal" in extra:
+        c = extra["coat_normal"]
+        out["coat_normal"] = dict(_select_perturb({k: v for k, v in c.items() if k != "follows_normal"}, corner),
+                                  follows_normal=c["follows_normal"])
     return out
 
 

@@ -627,6 +627,32 @@ def engine_smoke(out: str, size: int) -> dict:
         compositor(scene, name, denoise=False)
         render(scene, "LACQUER", os.path.join(out, f"engine_{tag}.exr"))
     disable_compositor(scene)
+    # Diffuse Color and Glossy Color (the view layer's Cycles flags): gold_flake_8, then the
+    # solid red (no flakes: its glossy colour is the clearcoat's reflection alone), each pass
+    # through the compositor; Combined of a one-bounce render in a uniform world (no lamp)
+    # for the Diffuse + Glossy = Combined check.
+    vl = scene.view_layers[0]
+    vl.use_pass_diffuse_color = vl.use_pass_glossy_color = True
+    lamps = [o for o in scene.objects if o.type == "LIGHT"]
+    for o in lamps:
+        o.hide_render = True
+    depth = scene.lacquer.max_depth
+    scene.lacquer.max_depth = 1
+    rep["lobe_passes"] = {}
+    ball = next(o for o in scene.objects if o.type == "MESH")
+    for preset in ("gold_flake_8", "solid_red"):
+        assign(ball, preset)
+        for name in ("DiffCol", "GlossCol"):
+            compositor(scene, name, denoise=False)
+            render(scene, "LACQUER", os.path.join(out, f"engine_{preset}_{name}.exr"))
+        disable_compositor(scene)
+        render(scene, "LACQUER", os.path.join(out, f"engine_{preset}_lobes_combined.exr"))
+        rep["lobe_passes"][preset] = dict(engine.LAST_RENDER)
+    for o in lamps:
+        o.hide_render = False
+    vl.use_pass_diffuse_color = vl.use_pass_glossy_color = False
+    assign(ball, "gold_flake_8")
+    scene.lacquer.max_depth = depth
     # The Denoise node on LACQUER's passes (noisy input at 4 spp), sparkle off: per-pixel flake
     # glints are image detail a denoiser should not be judged on; the MC noise of the mean lobe is.
     scene.lacquer.samples = 4
@@ -895,6 +921,16 @@ def artist_smoke(out: str, size: int) -> dict:
     rep["normal_map_messages"] = report.lines()
     passes("normalmap")
     tree.links.remove(node.inputs["Normal"].links[0])
+    # The same map on Coat Normal only: LACQUER shades the coat's reflection in the mapped frame
+    # and the paint under it in the plate's (two frames), as Cycles' Principled Coat Normal.
+    tree.links.new(nm.outputs["Normal"], node.inputs["Coat Normal"])
+    report = export.Report()
+    job = export.job(bpy.context.evaluated_depsgraph_get(), report, [])
+    rep["coat_normal_exported"] = [sorted(m.get("coat_normal", {})) for m in job["scene"]["meshes"].values()]
+    rep["coat_normal_base_map"] = any("normal_map" in m for m in job["scene"]["meshes"].values())
+    rep["coat_normal_messages"] = report.lines()
+    passes("coatnormal")
+    tree.links.remove(node.inputs["Coat Normal"].links[0])
     # Image Texture (Non-Color heights, stripes along u) → Bump (Height) → Normal: the plate is
     # 0.04 units across its UV map, h = ½ + ½ sin(2π 4 u) has slope up to 2π·2/0.04 = 314 per
     # unit, × Distance 0.001: tilts up to atan(0.314) = 17°.
@@ -923,6 +959,10 @@ def artist_smoke(out: str, size: int) -> dict:
     mat.lacquer.orange_peel_wavelength = 8e-3
     rep["peel_node_inputs"] = [node.inputs["Orange Peel"].default_value,
                                node.inputs["Orange Peel Wavelength"].default_value]
+    job = export.job(bpy.context.evaluated_depsgraph_get(), export.Report(), [])
+    rep["peel_exported"] = [{k: m["coat_normal"]["orange_peel"][k] for k in ("amplitude_um", "wavelength_mm")}
+                            | {"follows_normal": m["coat_normal"]["follows_normal"], "base_keys": sorted(m)}
+                            for m in job["scene"]["meshes"].values() if "coat_normal" in m]
     passes("peel")
     mat.lacquer.orange_peel = 0.0
     # The orange-peel waves' predicted RMS slope on this plane (the xy plane of the object):

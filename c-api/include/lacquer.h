@@ -68,7 +68,7 @@
 /**
  * ABI minor version: incremented when functions or status codes are added.
  */
-#define LQ_ABI_VERSION_MINOR 7
+#define LQ_ABI_VERSION_MINOR 8
 
 /**
  * The ABI version this header describes: `(major << 16) | minor`. Compare with
@@ -1255,6 +1255,26 @@ LQ_MUST_USE const float *lq_image_albedo(const lq_image *img);
  * `img` is NULL or a live image.
  */
 LQ_MUST_USE const float *lq_image_normal(const lq_image *img);
+
+/**
+ * Diffuse Color (as Cycles' pass): the first hit's diffuse lobe group's directional albedo
+ * (lobe mask `LQ_LOBE_DIFFUSE`, the mean of its sampled weights; width × height × 3 floats),
+ * or NULL unless the job had `"lobe_aovs": true`. ABI 0.8.
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE const float *lq_image_diffuse_color(const lq_image *img);
+
+/**
+ * Glossy Color: the same for the glossy groups (`LQ_LOBE_GLOSSY | LQ_LOBE_COAT`: flakes,
+ * metallic base, the clearcoat's reflection), or NULL unless the job had `"lobe_aovs": true`.
+ * ABI 0.8.
+ *
+ * # Safety
+ * `img` is NULL or a live image.
+ */
+LQ_MUST_USE const float *lq_image_glossy_color(const lq_image *img);
 
 /**
  * Releases an image. NULL is a no-op.

@@ -46,7 +46,7 @@ use std::ffi::c_char;
 /// shared library's SONAME (`liblacquer.so.0`).
 pub const LQ_ABI_VERSION_MAJOR: u32 = 0;
 /// ABI minor version: incremented when functions or status codes are added.
-pub const LQ_ABI_VERSION_MINOR: u32 = 7;
+pub const LQ_ABI_VERSION_MINOR: u32 = 8;
 /// The ABI version this header describes: `(major << 16) | minor`. Compare with
 /// `lq_abi_version()` at run time: the majors must be equal and the library's minor at least
 /// the header's.

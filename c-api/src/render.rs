@@ -13,6 +13,8 @@ pub struct lq_image {
     rgba: Vec<f32>,
     albedo: Option<Vec<f32>>,
     normal: Option<Vec<f32>>,
+    diffuse_color: Option<Vec<f32>>,
+    glossy_color: Option<Vec<f32>>,
 }
 
 /// Progress callback of `lq_render`: called on the thread that called `lq_render` (never on a
@@ -33,6 +35,8 @@ impl From<Framebuffer> for lq_image {
             rgba,
             albedo: fb.albedo.as_deref().map(flatten),
             normal: fb.normal.as_deref().map(flatten),
+            diffuse_color: fb.diffuse_color.as_deref().map(flatten),
+            glossy_color: fb.glossy_color.as_deref().map(flatten),
         }
     }
 }
@@ -263,6 +267,36 @@ pub unsafe extern "C" fn lq_image_normal(img: *const lq_image) -> *const f32 {
     // SAFETY: the caller's contract above.
     guard_value(std::ptr::null(), || {
         unsafe { img.as_ref() }.and_then(|i| i.normal.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
+    })
+}
+
+/// Diffuse Color (as Cycles' pass): the first hit's diffuse lobe group's directional albedo
+/// (lobe mask `LQ_LOBE_DIFFUSE`, the mean of its sampled weights; width × height × 3 floats),
+/// or NULL unless the job had `"lobe_aovs": true`. ABI 0.8.
+///
+/// # Safety
+/// `img` is NULL or a live image.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_image_diffuse_color(img: *const lq_image) -> *const f32 {
+    // SAFETY: the caller's contract above.
+    guard_value(std::ptr::null(), || {
+        unsafe { img.as_ref() }.and_then(|i| i.diffuse_color.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
+    })
+}
+
+/// Glossy Color: the same for the glossy groups (`LQ_LOBE_GLOSSY | LQ_LOBE_COAT`: flakes,
+/// metallic base, the clearcoat's reflection), or NULL unless the job had `"lobe_aovs": true`.
+/// ABI 0.8.
+///
+/// # Safety
+/// `img` is NULL or a live image.
+#[no_mangle]
+#[must_use]
+pub unsafe extern "C" fn lq_image_glossy_color(img: *const lq_image) -> *const f32 {
+    // SAFETY: the caller's contract above.
+    guard_value(std::ptr::null(), || {
+        unsafe { img.as_ref() }.and_then(|i| i.glossy_color.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
     })
 }
 

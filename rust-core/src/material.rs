@@ -139,6 +139,18 @@ impl Material {
         crate::lobes::select_lobes(self, mask)
     }
 
+    /// The weight with which sampling picks the lobes of a lobe mask for an outgoing
+    /// direction at `cos θo = cos_o` (the core's own lobe selection: the lobes of `mask` are
+    /// picked with probability `weight(mask) / weight(all)` at that angle), for models that
+    /// separate their lobes by such weights (`coated_paint`); `None` for the others.
+    #[must_use]
+    pub fn lobe_selection_weight(&self, cos_o: f64, mask: u32) -> Option<f64> {
+        match &self.model {
+            Model::CoatedPaint(p) => Some(p.selection_weight(cos_o, crate::paint::coated_paint::PaintParts::of(mask))),
+            _ => None,
+        }
+    }
+
     /// [`Material::eval`] restricted to a lobe selection.
     #[inline]
     #[must_use]

@@ -732,6 +732,8 @@ def _image_dict(handle) -> dict:
         "rgba": _array(_native.lib.lq_image_rgba(handle), 4),
         "albedo": _array(_native.lib.lq_image_albedo(handle), 3),
         "normal": _array(_native.lib.lq_image_normal(handle), 3),
+        "diffuse_color": _array(_native.lib.lq_image_diffuse_color(handle), 3),
+        "glossy_color": _array(_native.lib.lq_image_glossy_color(handle), 3),
     }
 
 
@@ -741,7 +743,8 @@ def render(job, progress=None) -> dict:
     ``job`` is a dict or a JSON string (``{"preset": "gold_flake_8", "width": 256, ...}``);
     ``progress(fraction) -> bool`` is called on this thread; returning False cancels
     (:class:`CancelledError`). Returns ``{"rgba": (h, w, 4) float32, "albedo": (h, w, 3) or
-    None, "normal": (h, w, 3) or None}``, rows top first, linear Rec.709.
+    None, "normal": (h, w, 3) or None, "diffuse_color", "glossy_color": (h, w, 3) with
+    ``"lobe_aovs": True`` in the job, else None}``, rows top first, linear Rec.709.
     """
     text = job if isinstance(job, str) else _json.dumps(job)
     callback = _progress_callback(progress)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: The ABI this package was written for: major must match, library minor must be >= this.
 ABI_MAJOR = 0
-ABI_MINOR = 7
+ABI_MINOR = 8
 
 _LIB_FILES = {"darwin": ["liblacquer.dylib"], "win32": ["lacquer.dll"]}.get(
     sys.platform, ["liblacquer.so", "liblacquer.so.0"]
@@ -107,6 +107,8 @@ _SIGNATURES = {
     "lq_image_rgba": (c_void_p, [c_void_p]),
     "lq_image_albedo": (c_void_p, [c_void_p]),
     "lq_image_normal": (c_void_p, [c_void_p]),
+    "lq_image_diffuse_color": (c_void_p, [c_void_p]),
+    "lq_image_glossy_color": (c_void_p, [c_void_p]),
     "lq_image_free": (None, [c_void_p]),
     "lq_render_session_new": (c_int32, [c_char_p, POINTER(c_void_p)]),
     "lq_render_session_advance": (c_int32, [c_void_p, c_uint32, PROGRESS_FN, c_void_p, POINTER(c_uint32)]),

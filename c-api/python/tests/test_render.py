@@ -47,3 +47,17 @@ def test_render_session_rounds_end_at_the_one_shot_image():
     with pytest.raises(lacquer.CancelledError):
         big.advance(4096, progress=lambda f: False)
     assert big.samples == 0
+
+
+def test_render_diffuse_and_glossy_color_layers():
+    """``"lobe_aovs": True`` adds Diffuse Color and Glossy Color (ABI 0.8); off by default. A
+    Lambert's diffuse colour is its albedo (every sample weight is exactly 0.5), its glossy
+    colour zero."""
+    plain = lacquer.render({"preset": "white_lambert", "width": 6, "height": 4, "spp": 2, "floor": False})
+    assert plain["diffuse_color"] is None and plain["glossy_color"] is None
+    out = lacquer.render({"material": {"model": "lambert", "albedo": 0.5}, "width": 6, "height": 4, "spp": 2,
+                          "floor": False, "lobe_aovs": True})
+    d, g = out["diffuse_color"], out["glossy_color"]
+    assert d.shape == g.shape == (4, 6, 3)
+    hit = out["rgba"][..., 3] == 1.0
+    assert hit.any() and np.allclose(d[hit], 0.5, atol=1e-6) and (g == 0).all()

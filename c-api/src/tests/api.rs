@@ -568,6 +568,19 @@ fn render_produces_an_image_reports_errors_and_cancels() {
         let px = std::slice::from_raw_parts(lq_image_rgba(img), 8 * 6 * 4);
         assert!(px.iter().all(|v| v.is_finite() && *v >= 0.0));
         assert!(!lq_image_albedo(img).is_null());
+        // Diffuse/Glossy Color only with "lobe_aovs": a Lambert's diffuse colour is its albedo.
+        assert!(lq_image_diffuse_color(img).is_null() && lq_image_glossy_color(img).is_null());
+        assert!(lq_image_diffuse_color(std::ptr::null()).is_null());
+        lq_image_free(img);
+        let lobes = CString::new(
+            r#"{"preset": "white_lambert", "width": 4, "height": 4, "spp": 2, "lobe_aovs": true, "floor": false}"#,
+        )
+        .unwrap();
+        assert_eq!(lq_render(lobes.as_ptr(), None, std::ptr::null_mut(), &mut img), LQ_OK);
+        let (d, g) = (lq_image_diffuse_color(img), lq_image_glossy_color(img));
+        assert!(!d.is_null() && !g.is_null());
+        let (d, g) = (std::slice::from_raw_parts(d, 4 * 4 * 3), std::slice::from_raw_parts(g, 4 * 4 * 3));
+        assert!(d.iter().any(|v| *v > 0.0) && g.iter().all(|v| *v == 0.0), "{d:?} {g:?}");
         lq_image_free(img);
         lq_image_free(std::ptr::null_mut());
         assert_eq!(lq_image_width(std::ptr::null()), 0);

@@ -42,8 +42,10 @@
 //! waviness: a height field of that RMS height and wavelength over the per-vertex metric
 //! coordinates `coords`, in metres), `"bump": {width, height, pixels, strength, distance, uvs}`
 //! (a height image as Blender's Bump node reads it: `pixels` are `width × height` heights,
-//! `distance` world units per unit of height), and `"texture_uvs"` (per-vertex coordinates of image
-//! textures, a host's UV map; default `uvs`).
+//! `distance` world units per unit of height), `"texture_uvs"` (per-vertex coordinates of image
+//! textures, a host's UV map; default `uvs`), and `"coat_normal": {follows_normal, normal_map,
+//! bump, orange_peel}` (the clearcoat's own normal, [`crate::perturb::CoatNormal`]: the paint is
+//! then shaded in two frames).
 //!
 //! A material given as JSON (named or inline) may carry `"textures"`: images on its
 //! `base_color`, `flake_density` and `coat_roughness` (a `coated_paint` with the Lambert
@@ -68,7 +70,7 @@ use crate::camera::Camera;
 use crate::env::Environment;
 use crate::geom::{v3, v3a, V3};
 use crate::lights::Light;
-use crate::perturb::{BumpMap, NormalMap, OrangePeel, Perturbation};
+use crate::perturb::{BumpMap, CoatNormal, NormalMap, OrangePeel, Perturbation};
 use crate::scene::{Scene, SceneBuilder};
 use crate::shapes::{Mesh, Quad, Sphere};
 use crate::texture::{Image, ImageDesc, PaintTextures, TexturesDesc};
@@ -261,6 +263,30 @@ pub struct MeshData {
     #[serde(default)]
     pub texture_uvs: Option<Packed<f32, 2>>,
     /// A bump map perturbing the shading normal (optional).
+    #[serde(default)]
+    pub bump: Option<BumpDesc>,
+    /// The clearcoat's own normal (optional): the paint is then shaded in two frames.
+    #[serde(default)]
+    pub coat_normal: Option<CoatNormalDesc>,
+}
+
+/// A mesh's clearcoat normal (`meshes.NAME.coat_normal`; [`crate::perturb::CoatNormal`]): its
+/// own normal map, bump and orange peel (the same fields as the mesh's), applied to the mesh's
+/// interpolated normal, or to its perturbed normal with `follows_normal`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoatNormalDesc {
+    /// Start from the mesh's perturbed normal (Blender: Coat Normal not connected, so the coat
+    /// follows Normal) instead of the interpolated one (default false: Coat Normal connected).
+    #[serde(default)]
+    pub follows_normal: bool,
+    /// The coat's tangent-space normal map.
+    #[serde(default)]
+    pub normal_map: Option<NormalMapDesc>,
+    /// Orange peel on the coat.
+    #[serde(default)]
+    pub orange_peel: Option<OrangePeelDesc>,
+    /// The coat's bump map.
     #[serde(default)]
     pub bump: Option<BumpDesc>,
 }
@@ -648,6 +674,7 @@ pub fn inline_mesh(
         uvs: uvs.map_or(Vec::new(), <[_]>::to_vec),
         triangles: triangles.to_vec(),
         perturb: None,
+        coat: None,
         texture_uvs: Vec::new(),
     })
 }
@@ -739,7 +766,8 @@ fn for_each_normal(mesh: &mut Mesh, f: impl Fn(V3) -> V3) {
     for n in &mut mesh.normals {
         *n = f(*n);
     }
-    if let Some((_, _, t, b)) = mesh.perturb.as_mut().and_then(|p| p.normal_map.as_mut()) {
+    let coat_map = mesh.coat.as_mut().and_then(|c| c.perturb.normal_map.as_mut());
+    for (_, _, t, b) in mesh.perturb.as_mut().and_then(|p| p.normal_map.as_mut()).into_iter().chain(coat_map) {
         for v in t.iter_mut().chain(b.iter_mut()) {
             *v = f(*v);
         }
@@ -822,6 +850,18 @@ impl SceneDesc {
             mesh.perturb =
                 perturbation(mesh.positions.len(), m.normal_map.as_ref(), m.orange_peel.as_ref(), m.bump.as_ref())
                     .map_err(|e| format!("meshes.{k}: {e}"))?;
+            if let Some(c) = &m.coat_normal {
+                let n = mesh.positions.len();
+                let p = perturbation(n, c.normal_map.as_ref(), c.orange_peel.as_ref(), c.bump.as_ref())
+                    .map_err(|e| format!("meshes.{k}.coat_normal: {e}"))?;
+                // Nothing to perturb and following the mesh's normal: the coat is the base's.
+                if p.is_some() || !c.follows_normal {
+                    mesh.coat = Some(Box::new(CoatNormal {
+                        perturb: p.map(|b| *b).unwrap_or_default(),
+                        follows_normal: c.follows_normal,
+                    }));
+                }
+            }
             if let Some(t) = &m.texture_uvs {
                 if t.0.len() != mesh.positions.len() || t.0.iter().flatten().any(|v| !v.is_finite()) {
                     return Err(format!(
@@ -1191,6 +1231,14 @@ mod tests {
         let bad =
             r#", "orange_peel": {"amplitude_um": 1, "wavelength_mm": 0, "coords": [[0,0,0],[0,0,0],[0,0,0],[0,0,0]]}"#;
         assert!(render_job(&job(bad), &mut |_| true).is_err());
+        // A coat normal: the tilted map on `coat_normal` only. A Lambert surface has no
+        // clearcoat, so it keeps the base frame (the plain value exactly); bad arrays there are
+        // errors naming `coat_normal`. (Two-frame shading: `integrator::coat_tests`.)
+        let coat = |m: &str| format!(r#", "coat_normal": {{"follows_normal": false {m}}}"#);
+        let kept = centre(&render_job(&job(&coat(&map("[0.75, 0.5, 0.9]", 4))), &mut |_| true).unwrap());
+        assert!(kept == plain, "{kept} vs {plain}");
+        let err = render_job(&job(&coat(&map("[0.5, 0.5, 1.0]", 3))), &mut |_| true).unwrap_err();
+        assert!(format!("{err:?}").contains("coat_normal: normal_map: uvs"), "{err:?}");
     }
 
     #[test]

@@ -14,9 +14,10 @@
 
 use crate::camera::CameraRay;
 use crate::geom::{offset_origin, Frame, Ray, V3};
-use crate::scene::{Hit, Scene};
+use crate::scene::{CoatShading, Hit, Scene};
 use crate::texture::{PaintTextures, Texels};
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
+use lacquer::lobes::{bits, LobeSelection};
 use lacquer::paint::varying::PaintTexture;
 use lacquer::rng::Pcg32;
 use lacquer::{BsdfSample, Material, Rgb, SurfacePoint};
@@ -40,6 +41,8 @@ pub struct RenderSettings {
     pub threads: usize,
     /// Also produce albedo and normal layers.
     pub aovs: bool,
+    /// Also produce the Diffuse Color and Glossy Color layers ([`Framebuffer::diffuse_color`]).
+    pub lobe_aovs: bool,
     /// Give camera-ray hits their pixel footprint (`eval_at`/`sample_at`: sparkle).
     pub footprints: bool,
     /// Depth from which Russian roulette may end paths.
@@ -63,6 +66,7 @@ impl Default for RenderSettings {
             tile_size: 32,
             threads: 0,
             aovs: true,
+            lobe_aovs: false,
             footprints: true,
             rr_depth: 3,
             clamp: 0.0,
@@ -88,6 +92,13 @@ pub struct Framebuffer {
     pub albedo: Option<Vec<[f32; 3]>>,
     /// World-space shading normal of the first surface, if requested.
     pub normal: Option<Vec<[f32; 3]>>,
+    /// Diffuse Color (as Cycles' pass): the directional albedo of the first surface's diffuse
+    /// lobe group (lobe mask `DIFFUSE`: pigment and multiple scattering), estimated by one
+    /// `sample_lobes` weight per camera sample, if requested ([`RenderSettings::lobe_aovs`]).
+    pub diffuse_color: Option<Vec<[f32; 3]>>,
+    /// Glossy Color: the same for the glossy groups (`GLOSSY | COAT`: flakes, metallic base,
+    /// the clearcoat's reflection).
+    pub glossy_color: Option<Vec<[f32; 3]>>,
     /// How the render went.
     pub stats: RenderStats,
 }
@@ -117,6 +128,8 @@ impl Framebuffer {
             alpha: vec![0.0; n],
             albedo: aovs.then(|| vec![[0.0; 3]; n]),
             normal: aovs.then(|| vec![[0.0; 3]; n]),
+            diffuse_color: None,
+            glossy_color: None,
             stats: RenderStats::default(),
         }
     }
@@ -189,6 +202,8 @@ struct PathValue {
     alpha: f32,
     albedo: C,
     normal: V3,
+    /// Diffuse and glossy colour of the first hit ([`RenderSettings::lobe_aovs`]).
+    lobe_colors: [C; 2],
 }
 
 /// The uv footprint of a camera ray's pixel, for its hit (pbrt's approach: intersect the
@@ -260,7 +275,13 @@ impl Path {
             depth: 0,
             passed: 0.0,
             passes: 0,
-            value: PathValue { radiance: C::zero(), alpha: 0.0, albedo: C::zero(), normal: V3::zero() },
+            value: PathValue {
+                radiance: C::zero(),
+                alpha: 0.0,
+                albedo: C::zero(),
+                normal: V3::zero(),
+                lobe_colors: [C::zero(); 2],
+            },
         }
     }
 
@@ -296,6 +317,9 @@ struct Vertex {
     path: u32,
     material: u32,
     frame: Frame,
+    /// The clearcoat's own frame, when the paint is shaded in two frames (`frame` is then the
+    /// base's; see [`shade_two_frames`]).
+    coat_frame: Option<Frame>,
     ng: V3,
     p: V3,
     wo: V3,
@@ -304,6 +328,8 @@ struct Vertex {
     u: [f32; 3],
     /// The material's textured parameters at the hit ([`crate::texture`]), if it has any.
     texels: Option<Texels>,
+    /// A camera hit whose Diffuse/Glossy Color is wanted.
+    lobe_aov: bool,
 }
 
 /// What the material returned for a vertex.
@@ -313,12 +339,38 @@ struct Shaded {
     f_light: C,
     pdf_light: f32,
     sample: Option<BsdfSample<f32>>,
+    /// `f_light` already holds `f · cos θ` (two frames: each part with its own cosine).
+    f_cos: bool,
 }
 
 impl Default for Shaded {
     fn default() -> Self {
-        Self { f_light: C::zero(), pdf_light: 0.0, sample: None }
+        Self { f_light: C::zero(), pdf_light: 0.0, sample: None, f_cos: false }
     }
+}
+
+/// The lobe masks of the Diffuse Color and Glossy Color layers for a material: `DIFFUSE` and
+/// `GLOSSY | COAT` when it separates them; otherwise everything in the layer of its kind
+/// (a diffuse-only model in Diffuse Color, any other in Glossy Color).
+fn lobe_color_selections(m: &Material) -> [LobeSelection; 2] {
+    match (m.select_lobes(bits::DIFFUSE), m.select_lobes(bits::GLOSSY | bits::COAT)) {
+        (Ok(d), Ok(g)) => [d, g],
+        _ if m.lobes() & (bits::GLOSSY | bits::DELTA) == 0 => [LobeSelection::All, LobeSelection::Nothing],
+        _ => [LobeSelection::Nothing, LobeSelection::All],
+    }
+}
+
+/// One estimate of the Diffuse Color and Glossy Color of a camera hit: each lobe group's
+/// sampled weight (`f·cos/pdf` of the group alone; its mean over samples is the group's
+/// directional albedo at `wo`), drawn with the vertex's own numbers (no random stream is
+/// consumed) in the base frame.
+fn lobe_colors(m: &Material, v: &Vertex) -> [C; 2] {
+    let mean = SurfacePoint { uv: [f64::NAN; 2], ..SurfacePoint::default() };
+    let at = v.at.unwrap_or(mean);
+    lobe_color_selections(m).map(|sel| match sel {
+        LobeSelection::Nothing => C::zero(),
+        sel => m.sample_at_lobes(v.wo, v.u, &at, sel).map_or(C::zero(), |s| s.weight),
+    })
 }
 
 /// Moves a path to its next vertex that needs the material (`None`: the path ended),
@@ -371,15 +423,27 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
 
         // Two-sided surfaces: turn the normals toward the viewer.
         let wo_world = -path.ray.d;
-        let (mut ng, mut ns) = (hit.surf.ng, hit.surf.ns);
+        let (mut ng, mut ns, mut coat_ns) = (hit.surf.ng, hit.surf.ns, hit.surf.coat_ns);
         if ng.dot(wo_world) < 0.0 {
             ng = -ng;
             ns = -ns;
+            coat_ns = coat_ns.map(|n| -n);
         }
         if ns.dot(wo_world) <= 0.0 {
             ns = ng;
         }
-        let frame = Frame::from_normal_tangent(ns, hit.surf.dpdu);
+        // The clearcoat's own normal (facing the viewer as `ns`): a second frame, or the only
+        // one for materials that cannot split their lobes ([`CoatShading`]).
+        let coat_ns = coat_ns.map(|n| if n.dot(wo_world) <= 0.0 { ng } else { n }).filter(|&n| n != ns);
+        let mut coat_frame = None;
+        let mut frame = Frame::from_normal_tangent(ns, hit.surf.dpdu);
+        if let Some(n) = coat_ns {
+            match scene.coat_shading[material as usize] {
+                CoatShading::TwoFrames { .. } => coat_frame = Some(Frame::from_normal_tangent(n, hit.surf.dpdu)),
+                CoatShading::CoatFrame => frame = Frame::from_normal_tangent(n, hit.surf.dpdu),
+                CoatShading::BaseFrame => {}
+            }
+        }
         let at = if path.depth == 0 && set.footprints { footprint(&path.cr, &hit) } else { None };
         if path.depth == 0 && set.aovs {
             path.value.normal = ns;
@@ -401,20 +465,26 @@ fn advance(scene: &Scene, set: &RenderSettings, path: &mut Path, rng: &mut Sampl
             })
         });
         let u = rng.next3();
-        return Some(Vertex { path: 0, material, frame, ng, p, wo: frame.to_local(wo_world), at, light, u, texels });
+        let wo = frame.to_local(wo_world);
+        let lobe_aov = path.depth == 0 && set.lobe_aovs;
+        return Some(Vertex { path: 0, material, frame, coat_frame, ng, p, wo, at, light, u, texels, lobe_aov });
     }
 }
 
 /// Adds the vertex's light sample and continues the path with the material's sample;
 /// `false` when the path ends here.
 fn finish(scene: &Scene, set: &RenderSettings, path: &mut Path, v: &Vertex, s: &Shaded, rng: &mut Sampler) -> bool {
+    if v.lobe_aov {
+        path.value.lobe_colors = lobe_colors(&scene.materials[v.material as usize], v);
+    }
     if let Some(l) = &v.light {
-        if l.wi.z > 0.0 && !s.f_light.is_black() {
+        let cos = if s.f_cos { 1.0 } else { l.wi.z };
+        if cos > 0.0 && !s.f_light.is_black() {
             let o = offset_origin(v.p, v.ng, l.wi_world);
             let tmax = if l.dist.is_finite() { l.dist * (1.0 - 1e-3) } else { f32::INFINITY };
             if !scene.occluded(&Ray { o, d: l.wi_world, tmax }) {
                 let w = if l.delta { 1.0 } else { power_heuristic(l.pl, s.pdf_light) };
-                path.value.radiance += path.beta * s.f_light * l.li * (l.wi.z * w / l.pl);
+                path.value.radiance += path.beta * s.f_light * l.li * (cos * w / l.pl);
             }
         }
     }
@@ -462,6 +532,8 @@ struct ShadeBuffers {
     at: Vec<SurfacePoint>,
     /// Textured parameters per vertex: red, green, blue, flake density, coat roughness.
     tex: [Vec<f32>; 5],
+    /// The vertices of a group shaded in one frame (when others have a coat frame).
+    one_frame: Vec<u32>,
 }
 
 impl ShadeBuffers {
@@ -499,6 +571,38 @@ fn dst3(v: &mut [Vec<f32>; 3]) -> Dst3<'_, f32> {
 /// per-element calls instead (`batch::eval_pdf_varying`, `sample_varying`: the mean lobe, no
 /// sparkle) with each vertex's texel values.
 fn shade_group(
+    mat: &Material,
+    textures: Option<&PaintTextures>,
+    coat: CoatShading,
+    vertices: &[Vertex],
+    group: &[u32],
+    buf: &mut ShadeBuffers,
+    out: &mut [Shaded],
+) {
+    // Vertices with a coat frame are shaded one by one in two frames, the others in batches.
+    if let CoatShading::TwoFrames { coat, base } = coat {
+        if group.iter().any(|&vi| vertices[vi as usize].coat_frame.is_some()) {
+            let mut one = std::mem::take(&mut buf.one_frame);
+            one.clear();
+            for &vi in group {
+                let v = &vertices[vi as usize];
+                match v.coat_frame {
+                    Some(cf) => out[vi as usize] = shade_two_frames(mat, coat, base, v, cf),
+                    None => one.push(vi),
+                }
+            }
+            if !one.is_empty() {
+                shade_batch(mat, textures, vertices, &one, buf, out);
+            }
+            buf.one_frame = one;
+            return;
+        }
+    }
+    shade_batch(mat, textures, vertices, group, buf, out);
+}
+
+/// The batch calls of [`shade_group`] for vertices shaded in one frame.
+fn shade_batch(
     mat: &Material,
     textures: Option<&PaintTextures>,
     vertices: &[Vertex],
@@ -545,6 +649,56 @@ fn shade_group(
             delta: flags & batch::SAMPLE_DELTA != 0,
         });
     }
+}
+
+/// A paint shaded in two frames (the clearcoat's own normal, as Cycles' Coat Normal): the lobes
+/// of `coat` (the top reflection) in the coat frame `cf`, those of `base` in the base frame
+/// `v.frame`. The value is the sum of the two parts, each with its own cosine:
+/// `f·cos = f_coat(wi_c, wo_c) cos θ_c + f_base(wi_b, wo_b) cos θ_b`. Sampling picks the coat
+/// part with probability `P_c = w_c / (w_c + w_b)` (the core's own lobe-selection weights of
+/// the two groups, [`Material::lobe_selection_weight`], each at its frame's `cos θo`: with equal
+/// frames exactly the core's selection) and samples it in its frame; the density is the
+/// mixture `P_c p_coat(wi_c) + (1 − P_c) p_base(wi_b)`, which light sampling's MIS weights use
+/// too, so next-event estimation and MIS stay unbiased. A delta coat sample (smooth coat) has
+/// the probability `P_c` and the weight `F / P_c`. The sample's direction is returned in the
+/// base frame, `f_light` as `f · cos` ([`Shaded::f_cos`]).
+fn shade_two_frames(mat: &Material, coat: LobeSelection, base: LobeSelection, v: &Vertex, cf: Frame) -> Shaded {
+    let bf = v.frame;
+    let wo_b = v.wo;
+    let wo_c = cf.to_local(bf.to_world(wo_b));
+    let mean = SurfacePoint { uv: [f64::NAN; 2], ..SurfacePoint::default() };
+    let at = v.at.unwrap_or(mean);
+    let weight = |cos: f32, mask: u32| mat.lobe_selection_weight(f64::from(cos), mask).unwrap_or(0.0).max(0.0);
+    let (w_c, w_b) = (weight(wo_c.z, bits::COAT), weight(wo_b.z, bits::DIFFUSE | bits::GLOSSY));
+    let p_c = if w_c + w_b > 0.0 { (w_c / (w_c + w_b)) as f32 } else { 0.0 };
+    let value = |wi_world: V3| -> (C, f32) {
+        let (wi_c, wi_b) = (cf.to_local(wi_world), bf.to_local(wi_world));
+        let f = mat.eval_at_lobes(wi_c, wo_c, &at, coat) * wi_c.z.max(0.0)
+            + mat.eval_at_lobes(wi_b, wo_b, &at, base) * wi_b.z.max(0.0);
+        let pdf = p_c * mat.pdf_lobes(wi_c, wo_c, coat) + (1.0 - p_c) * mat.pdf_lobes(wi_b, wo_b, base);
+        (f, pdf)
+    };
+    let mut out = Shaded { f_cos: true, ..Shaded::default() };
+    if let Some(l) = &v.light {
+        (out.f_light, out.pdf_light) = value(l.wi_world);
+    }
+    let [u0, u1, u2] = v.u;
+    let one_minus = 1.0 - f32::EPSILON / 2.0;
+    let (frame, wo, sel, p, u0) = if u0 < p_c {
+        (cf, wo_c, coat, p_c, (u0 / p_c).min(one_minus))
+    } else {
+        (bf, wo_b, base, 1.0 - p_c, ((u0 - p_c) / (1.0 - p_c)).min(one_minus))
+    };
+    out.sample = mat.sample_at_lobes(wo, [u0, u1, u2], &at, sel).and_then(|s| {
+        let wi_world = frame.to_world(s.wi);
+        let wi = bf.to_local(wi_world);
+        if s.delta {
+            return Some(BsdfSample { wi, weight: s.weight / p, pdf: s.pdf * p, delta: true });
+        }
+        let (f, pdf) = value(wi_world);
+        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, weight: f / pdf, pdf, delta: false })
+    });
+    out
 }
 
 /// The batch calls of an untextured material at the staged surface points (sparkle).
@@ -602,6 +756,8 @@ struct PixelState {
     a: f64,
     al: [f64; 3],
     n: [f64; 3],
+    /// Sums of the Diffuse Color and Glossy Color estimates.
+    lc: [[f64; 3]; 2],
 }
 
 impl PixelState {
@@ -612,6 +768,7 @@ impl PixelState {
             a: 0.0,
             al: [0.0; 3],
             n: [0.0; 3],
+            lc: [[0.0; 3]; 2],
         }
     }
 
@@ -679,7 +836,8 @@ fn render_tile(
             for (mi, g) in groups.iter().enumerate() {
                 if !g.is_empty() {
                     let tex = scene.textures[mi].as_deref();
-                    shade_group(&scene.materials[mi], tex, &vertices, g, &mut buf, &mut shaded);
+                    let coat = scene.coat_shading[mi];
+                    shade_group(&scene.materials[mi], tex, coat, &vertices, g, &mut buf, &mut shaded);
                 }
             }
             next.clear();
@@ -708,6 +866,13 @@ fn render_tile(
                 st.c[k] += r[k] as f64;
             }
             st.a += v.alpha as f64;
+            if set.lobe_aovs && v.lobe_colors.iter().all(|c| c.is_finite()) {
+                for (sum, c) in st.lc.iter_mut().zip(&v.lobe_colors) {
+                    for k in 0..3 {
+                        sum[k] += c[k] as f64;
+                    }
+                }
+            }
             if set.aovs && v.albedo.is_finite() {
                 for (k, nk) in [v.normal.x, v.normal.y, v.normal.z].into_iter().enumerate() {
                     st.al[k] += v.albedo[k] as f64;
@@ -872,6 +1037,12 @@ impl Progressive {
             if let Some(v) = fb.normal.as_mut() {
                 v[i] = n;
             }
+            if self.set.lobe_aovs {
+                let inv = 1.0 / self.samples.max(1) as f64;
+                let [d, g] = st.lc.map(|c| c.map(|x| (x * inv) as f32));
+                fb.diffuse_color.get_or_insert_with(Vec::new).push(d);
+                fb.glossy_color.get_or_insert_with(Vec::new).push(g);
+            }
         }
         let paths = self.width as u64 * self.height as u64 * self.samples as u64;
         fb.stats = RenderStats {
@@ -903,3 +1074,6 @@ pub fn render(
 pub fn render_quiet(scene: &Scene, set: &RenderSettings) -> Framebuffer {
     render(scene, set, &mut |_| true).expect("not cancellable")
 }
+
+#[cfg(test)]
+mod coat_tests;

@@ -10,7 +10,7 @@
 //! Keys: `preset` or `material` (material JSON; the built-in scene's sphere, or the scene's
 //! material named `"paint"`), `scene` (an inline scene, see [`crate::desc`]; default: the
 //! built-in scene), `width`, `height` (512), `spp` (64), `max_depth` (8), `seed` (0),
-//! `threads` (0 = all cores), `aovs` (true), `sparkle` (true), `clamp` (0), `transparent`
+//! `threads` (0 = all cores), `aovs` (true), `lobe_aovs` (false: Diffuse/Glossy Color), `sparkle` (true), `clamp` (0), `transparent`
 //! (false: camera rays that miss see black, alpha 0, instead of the environment), and for the
 //! built-in scene `env` (`"studio"`, `"uniform:L"` or a lat-long file), `env_scale`,
 //! `env_rotation_deg`, `key_light`, `floor`.
@@ -75,6 +75,9 @@ pub struct RenderJob {
     /// Albedo and normal layers.
     #[serde(default = "d_true")]
     pub aovs: bool,
+    /// Diffuse Color and Glossy Color layers (default false).
+    #[serde(default)]
+    pub lobe_aovs: bool,
     /// Pixel footprints for sparkle.
     #[serde(default = "d_true")]
     pub sparkle: bool,
@@ -136,6 +139,7 @@ impl RenderJob {
             seed: self.seed,
             threads: self.threads,
             aovs: self.aovs,
+            lobe_aovs: self.lobe_aovs,
             footprints: self.sparkle,
             clamp: self.clamp,
             transparent: self.transparent,

@@ -3,8 +3,11 @@
 //! height field with a physical amplitude and wavelength).
 //!
 //! Both act on the shading normal of a mesh hit ([`crate::shapes::Mesh::surface`]): the
-//! normal map first, then orange peel on the mapped surface. The paint model itself has one
-//! shading frame, so the whole layer stack follows the perturbed normal.
+//! normal map first, then orange peel on the mapped surface. A mesh's [`Perturbation`] tilts
+//! the whole paint; a mesh's [`CoatNormal`] (Blender's Coat Normal, orange peel) gives the
+//! clearcoat's top reflection its own normal, and the integrator then shades a paint in two
+//! frames: the coat's reflection in the coat frame, the lobes under the coat in the base frame
+//! (as Cycles does with the Principled BSDF's Coat Normal).
 //!
 //! **Normal map** (Cycles' `svm_node_normal_map`, tangent space): the texel colour `c` (non-colour
 //! data, bilinear, repeating; texel `(i, j)` centred at `((i + ½)/w, (j + ½)/h)`, row 0 at v = 0)
@@ -253,6 +256,27 @@ impl Perturbation {
             }
         }
         n
+    }
+}
+
+/// The clearcoat's own normal (Blender's Coat Normal input, orange peel): perturbations applied
+/// to the mesh's interpolated normal (`follows_normal == false`: a Coat Normal connected to its
+/// own normal map or bump, which replaces Normal for the coat in Cycles) or to the base's
+/// perturbed normal (`true`: the coat follows Normal, then e.g. orange peel tilts it).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoatNormal {
+    /// The coat's perturbations.
+    pub perturb: Perturbation,
+    /// Start from the base's perturbed normal instead of the interpolated one.
+    pub follows_normal: bool,
+}
+
+impl CoatNormal {
+    /// The coat's normal at barycentrics `b` of the triangle `idx` with world positions `p`:
+    /// `interpolated` is the mesh's unit shading normal, `base` the base's perturbed normal.
+    #[must_use]
+    pub fn apply(&self, idx: [usize; 3], b: [f32; 3], p: [V3; 3], interpolated: V3, base: V3) -> V3 {
+        self.perturb.apply(idx, b, p, if self.follows_normal { base } else { interpolated })
     }
 }
 

@@ -8,6 +8,7 @@ use crate::geom::{Aabb, Ray, V3};
 use crate::lights::Light;
 use crate::shapes::{Mesh, Quad, Sphere, SurfaceHit};
 use crate::texture::PaintTextures;
+use lacquer::lobes::{bits, LobeSelection};
 use lacquer::Material;
 use std::sync::Arc;
 
@@ -48,6 +49,43 @@ pub struct Hit {
     /// The surface is an emitter that rays pass through (camera rays do not see it, shadow
     /// rays ignore it, other rays collect its emission and go on).
     pub pass_through: bool,
+}
+
+/// How a material shades a hit whose clearcoat has its own normal (a mesh's
+/// [`crate::perturb::CoatNormal`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CoatShading {
+    /// Two frames: the lobes of `coat` (the clearcoat's top reflection) in the coat frame, those
+    /// of `base` (everything under the coat) in the base frame.
+    TwoFrames {
+        /// The clearcoat's top reflection.
+        coat: LobeSelection,
+        /// The other lobes.
+        base: LobeSelection,
+    },
+    /// One frame, the coat's: a paint with textured parameters (the per-element calls have no
+    /// lobe selection), whose whole layer stack then follows the coat normal.
+    CoatFrame,
+    /// One frame, the base's: a material without a separable clearcoat reflection.
+    BaseFrame,
+}
+
+impl CoatShading {
+    /// What `m` (with textured parameters when `textured`) can do.
+    #[must_use]
+    pub fn of(m: &Material, textured: bool) -> Self {
+        let has_coat = m.lobe_parts().iter().any(|p| p.select & bits::COAT != 0);
+        if !has_coat || m.lobe_selection_weight(1.0, bits::COAT).is_none() {
+            return Self::BaseFrame;
+        }
+        if textured {
+            return Self::CoatFrame;
+        }
+        match (m.select_lobes(bits::COAT), m.select_lobes(bits::DIFFUSE | bits::GLOSSY)) {
+            (Ok(coat), Ok(base)) => Self::TwoFrames { coat, base },
+            _ => Self::CoatFrame,
+        }
+    }
 }
 
 /// Collects shapes, materials and lights.
@@ -174,8 +212,11 @@ impl SceneBuilder {
         let (meshes, mesh_refs) = self.meshes.into_iter().unzip();
         let (spheres, sphere_refs) = self.spheres.into_iter().unzip();
         let (quads, quad_refs) = self.quads.into_iter().unzip();
+        let coat_shading =
+            self.materials.iter().zip(&self.textures).map(|(m, t)| CoatShading::of(m, t.is_some())).collect();
         Scene {
             camera,
+            coat_shading,
             materials: self.materials,
             textures: self.textures,
             meshes,
@@ -202,6 +243,8 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Textured parameters per material (`None`: the material is uniform).
     pub textures: Vec<Option<Arc<PaintTextures>>>,
+    /// Per material: how it shades hits whose clearcoat has its own normal.
+    pub coat_shading: Vec<CoatShading>,
     meshes: Vec<Mesh>,
     mesh_refs: Vec<ShapeRef>,
     spheres: Vec<Sphere>,

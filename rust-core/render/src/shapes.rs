@@ -6,7 +6,7 @@
 //! their own texture coordinates (or none: then uv is zero and the footprint is zero).
 
 use crate::geom::{v3, vmax, vmin, Aabb, Ray, V3};
-use crate::perturb::Perturbation;
+use crate::perturb::{CoatNormal, Perturbation};
 
 /// Geometry of a successful intersection.
 #[derive(Clone, Copy, Debug)]
@@ -17,6 +17,9 @@ pub struct SurfaceHit {
     pub ng: V3,
     /// Unit shading normal (interpolated for meshes), on the same side as `ng`.
     pub ns: V3,
+    /// The clearcoat's own unit shading normal where it differs from `ns` (a mesh's
+    /// [`CoatNormal`]); `None`: the coat follows `ns`.
+    pub coat_ns: Option<V3>,
     /// ∂p/∂u.
     pub dpdu: V3,
     /// ∂p/∂v.
@@ -38,6 +41,8 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Shading-normal perturbations (normal map, orange peel), if any.
     pub perturb: Option<Box<Perturbation>>,
+    /// The clearcoat's own normal (Coat Normal, orange peel on the coat), if any.
+    pub coat: Option<Box<CoatNormal>>,
     /// Vertex coordinates of image textures (a host's UV map; empty: `uvs`), see
     /// [`crate::texture`].
     pub texture_uvs: Vec<[f32; 2]>,
@@ -138,6 +143,7 @@ impl Mesh {
         }
         // Keep the geometric normal on the side the mesh's normals say is outside.
         let ng = if ng.dot(ns) < 0.0 { -ng } else { ng };
+        let interpolated = ns;
         if let Some(pert) = &self.perturb {
             let n = pert.apply([ia, ib, ic], [b0, b1, b2], [a, b, c], ns);
             // A normal tilted past the surface is not a valid shading normal: keep the mesh's.
@@ -145,7 +151,12 @@ impl Mesh {
                 ns = n;
             }
         }
-        SurfaceHit { p, ng, ns, dpdu, dpdv, uv }
+        let coat_ns = self.coat.as_ref().and_then(|coat| {
+            let n = coat.apply([ia, ib, ic], [b0, b1, b2], [a, b, c], interpolated, ns);
+            // As above: a coat normal past the surface falls back to the base's.
+            (n.dot(ng) > 1e-3 && n != ns).then_some(n)
+        });
+        SurfaceHit { p, ng, ns, coat_ns, dpdu, dpdv, uv }
     }
 }
 
@@ -212,7 +223,7 @@ impl Sphere {
         let (sp, cp) = (phi.sin(), phi.cos());
         let dpdu = v3(-st * sp, 0.0, st * cp) / self.uv_scale;
         let dpdv = v3(ct * cp, -st, ct * sp) / self.uv_scale;
-        SurfaceHit { p, ng: n, ns: n, dpdu, dpdv, uv }
+        SurfaceHit { p, ng: n, ns: n, coat_ns: None, dpdu, dpdv, uv }
     }
 }
 
@@ -293,7 +304,7 @@ impl Quad {
         let uv = [a * lu * self.uv_scale, b * lv * self.uv_scale];
         let dpdu = self.edge_u / (lu * self.uv_scale);
         let dpdv = self.edge_v / (lv * self.uv_scale);
-        SurfaceHit { p, ng: n, ns: n, dpdu, dpdv, uv }
+        SurfaceHit { p, ng: n, ns: n, coat_ns: None, dpdu, dpdv, uv }
     }
 }
 

@@ -583,6 +583,17 @@ impl CoatedPaint {
         keep(lanes::gt(total, T::c(0.0)), p / total)
     }
 
+    /// The sum of the lobe-selection weights sampling gives the lobes `parts` enables, for an
+    /// outgoing direction at `cos θo = mu_o`: sampling with [`PaintParts::ALL`] picks the lobes
+    /// of `parts` with probability `selection_weight(μo, parts) / selection_weight(μo, ALL)`.
+    /// What a renderer that shades two groups of lobes in two frames (a coat normal) mixes
+    /// them with.
+    #[must_use]
+    pub fn selection_weight(&self, mu_o: f64, parts: PaintParts) -> f64 {
+        let s = self.selection_parts(mu_o, parts);
+        s[0] + s[1] + s[2]
+    }
+
     /// The density of sampling restricted to `parts` ([`CoatedPaint::sample_parts`]).
     #[inline(always)]
     pub fn pdf_parts<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: PaintParts) -> T {
