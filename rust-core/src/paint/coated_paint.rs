@@ -466,7 +466,7 @@ impl CoatedPaint {
     #[must_use]
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
         [
-            Rgb::splat(self.coat.reflection_eval(wi, wo)),
+            Rgb::splat(self.coat.top_eval(wi, wo)),
             self.layer_term(wi, wo, T::one(), T::one(), PaintParts::ALL),
             self.multiple_term(wi, wo),
         ]
@@ -478,13 +478,15 @@ impl CoatedPaint {
         (self.single.eval(mu), self.multiple.eval(mu))
     }
 
-    /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
+    /// Lobe-selection weights for `wo`: top reflection (single scattering, visible normals),
+    /// single-scatter layer, and the cosine-sampled lobes: the multiple-scatter lobe plus the
+    /// rough coat's multiple-scattering reflection ([`Coat::ms_albedo`], 0 for a smooth coat).
     #[inline(always)]
     fn selection<T: Lanes>(&self, mu_o: T) -> [T; 3] {
         let [a, b, c] = self.single.eval_lanes(mu_o);
         let [d, e, f] = self.multiple.eval_lanes(mu_o);
         let third = T::c(3.0);
-        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third]
+        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third + self.coat.ms_albedo(mu_o)]
     }
 
     /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
@@ -537,7 +539,7 @@ impl CoatedPaint {
         pearl_scale: T,
         parts: PaintParts,
     ) -> Rgb<T> {
-        let mut f = if parts.coat { Rgb::splat(self.coat.reflection_eval(wi, wo)) } else { Rgb::zero() };
+        let mut f = if parts.coat { Rgb::splat(self.coat.top_eval(wi, wo)) } else { Rgb::zero() };
         if parts.pigment || parts.glossy {
             f += self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
         }
@@ -558,11 +560,12 @@ impl CoatedPaint {
         }
         let zero = T::c(0.0);
         let share = self.base.selection_share(parts.base());
-        [
-            if parts.coat { s[0] } else { zero },
-            if share > 0.0 { s[1] * T::c(share) } else { zero },
-            if parts.pigment { s[2] } else { zero },
-        ]
+        // The cosine-sampled weight holds the multiple-scatter lobe (pigment) and the coat's
+        // multiple-scattering reflection (coat).
+        let [d, e, f] = self.multiple.eval_lanes(mu_o);
+        let cosine = if parts.pigment { (d + e + f) / T::c(3.0) } else { zero }
+            + if parts.coat { self.coat.ms_albedo(mu_o) } else { zero };
+        [if parts.coat { s[0] } else { zero }, if share > 0.0 { s[1] * T::c(share) } else { zero }, cosine]
     }
 
     /// The mixture density for `wo`'s lobe-selection weights `s` (restricted to `parts`, as
@@ -577,7 +580,7 @@ impl CoatedPaint {
                 s[1] * self.base.pdf_parts(wi_in, wo_in, parts.base()) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
             p += keep(lanes::gt(s[1], T::c(0.0)), layer);
         }
-        if parts.pigment {
+        if parts.pigment || parts.coat {
             p += s[2] * cosine_hemisphere_pdf(wi.z);
         }
         keep(lanes::gt(total, T::c(0.0)), p / total)
@@ -1076,6 +1079,78 @@ mod tests {
             );
             assert!(err < 0.10, "θo {theta}°: lobe-shape error {err}");
         }
+    }
+
+    /// Issue 17, item 3: the rough coat's multiple-scattering reflection
+    /// ([`super::super::coat::MultipleScattering`]). Against the lossless interface's walk
+    /// (Heitz et al. 2016; 400 000 walks per direction, σ ≤ 7e-4): the coat's reflected energy
+    /// `E_top + ΔR` at θo 0° / 60° / 75°, α 0.1 / 0.2 / 0.3. Single scattering alone (`E_top`,
+    /// the old model) is up to 0.0104 low at 75° (asserted > 0.006 there, so the test fails on
+    /// it); with ΔR asserted within 0.004 (measured in the output). A smooth coat has no such
+    /// term (the old values bit for bit: no table), at α 0.001 it is below 1e-4; the lobe is
+    /// reciprocal and `E_top + ΔR + T = 1`. ≈ 2 s in release.
+    #[test]
+    fn rough_coat_reflects_what_the_lossless_interface_reflects() {
+        use crate::paint::coat::Coat;
+        use crate::paint::rough_dielectric::RoughDielectric;
+        let smooth = Coat::new(1.5, 0.0, 40.0, [0.0; 3]);
+        assert!(smooth.multiple_scattering().is_none());
+        assert_eq!(smooth.ms_albedo(0.3f64), 0.0);
+        let tiny = Coat::new(1.5, 0.001, 40.0, [0.0; 3]);
+        let worst_tiny = (0..=20).map(|k| tiny.ms_albedo(k as f64 / 20.0)).fold(0.0f64, f64::max);
+        eprintln!("α 0.001: largest ΔR {worst_tiny:.2e}");
+        assert!(worst_tiny < 1e-4, "{worst_tiny}");
+        let walks = 400_000;
+        for alpha in [0.1, 0.2, 0.3] {
+            let coat = Coat::new(1.5, alpha, 40.0, [0.0; 3]);
+            let top = RoughDielectric { eta: 1.5, alpha };
+            eprintln!("α {alpha}: κ {:.4}", coat.multiple_scattering().unwrap().kappa);
+            for theta in [0.0f64, 60.0, 75.0] {
+                let mu = theta.to_radians().cos();
+                let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let mut rng = crate::rng::Pcg32::new(0x3c, theta as u64);
+                let up =
+                    (0..walks).filter(|_| top.sample_multiple(wo, &mut rng).is_some_and(|(w, _)| w.z > 0.0)).count();
+                let r = up as f64 / walks as f64;
+                let (old, ms) = (coat.reflectance(mu), coat.ms_albedo(mu));
+                let new = old + ms;
+                eprintln!(
+                    "α {alpha} θo {theta}°: walk {r:.4} ± {:.4}; E_top {old:.4} ({:+.4}), E_top + ΔR {new:.4} ({:+.4})",
+                    (r * (1.0 - r) / walks as f64).sqrt(),
+                    old - r,
+                    new - r
+                );
+                assert!((new - r).abs() < 0.004, "α {alpha} θo {theta}°: {new} vs {r}");
+                if theta == 75.0 {
+                    assert!(r - old > 0.006, "α {alpha}: single scattering should miss: {old} vs {r}");
+                }
+                assert!((coat.transmittance(mu) + new - 1.0).abs() < 1e-12);
+                let wi = Vec3::new(-0.3f64, 0.5, 0.812_403_840_463_596).normalize();
+                let (a, b) = (coat.ms_eval(wi, wo), coat.ms_eval(wo, wi));
+                assert!((a - b).abs() <= 1e-15 * a, "{a} vs {b}");
+            }
+        }
+    }
+
+    /// Issue 17, item 3: a pigment under a rough coat (α 0.2) at grazing view (θo 75°): the
+    /// analytic albedo against the lossless reference, 100 000 walks (±0.7 %). Without the
+    /// coat's multiple-scattering reflection −4.6 % (§8, 400 000 walks); asserted within 2.5 %
+    /// (measured in the output). ≈ 0.5 s in release.
+    #[test]
+    fn rough_coat_pigment_albedo_at_grazing_view_matches_the_reference() {
+        use crate::paint::position_free_mc::PositionFreeMc;
+        let p = paint(
+            r#"{"model": "coated_paint", "coat_roughness": 0.2, "flake_density": 0, "base_color": [0.5, 0.03, 0.03]}"#,
+        );
+        let mu = 75f64.to_radians().cos();
+        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let reference = PositionFreeMc::new(&p).albedo(wo, 100_000, 75);
+        let (a1, m) = p.layer_albedos(mu);
+        let top = p.coat().reflectance(mu) + p.coat().ms_albedo(mu);
+        let ours = Rgb::new(top + a1[0] + m[0], top + a1[1] + m[1], top + a1[2] + m[2]).luminance();
+        let (r, se) = (reference.value.luminance(), reference.std_error.luminance());
+        eprintln!("θo 75°: analytic {ours:.5}, reference {r:.5} ± {se:.5}: {:+.2} %", 100.0 * (ours / r - 1.0));
+        assert!((ours / r - 1.0).abs() < 0.025, "{ours} vs {r}");
     }
 
     /// No coat (η = 1, no absorption) over a Lambert pigment is exactly Lambert: the layering
