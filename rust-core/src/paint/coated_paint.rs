@@ -27,9 +27,11 @@
 //!
 //! ## The model
 //! Outside directions `wi`, `wo`; inside the coat (index η) their refracted versions `wi'`,
-//! `wo'`. With `T(μ) = 1 − E_top(μ)` the energy entering the coat (`E_top = F` for a smooth
-//! coat, the tabulated albedo of the GGX reflection for a rough one), `τ(w')` the Beer-Lambert
-//! transmittance of one crossing and `f_b` the basecoat BRDF:
+//! `wo'`. With `T(μ) = 1 − E_top(μ) − ΔR(μ)` the energy entering the coat (`E_top = F` for a
+//! smooth coat, the tabulated albedo of the GGX reflection for a rough one; `ΔR` the rough
+//! interface's multiple-scattering reflection, [`super::coat::MultipleScattering`], 0 for a
+//! smooth coat), `τ(w')` the Beer-Lambert transmittance of one crossing and `f_b` the basecoat
+//! BRDF (`f_top` is the coat's GGX reflection plus the separable lobe `ΔR(μi)ΔR(μo)/(πΔR̄)`):
 //!
 //! `f = f_top(wi, wo) + T(μi) T(μo)/η² · τ(wi') τ(wo') · f_b(wi', wo') + M(μi) M(μo) / (π M̄)`
 //!
@@ -45,8 +47,9 @@
 //! is exactly `M(μo)`.
 //!
 //! Hence: every term is symmetric in (wi, wo) (reciprocal); the albedo is
-//! `E_top + A1 + M ≤ E_top + U ≤ E_top + T = 1` (energy-conserving); and a lossless stack
-//! (white pigment, no absorption) reaches `E_top + U = 1` (no energy lost to the layering).
+//! `E_top + ΔR + A1 + M ≤ E_top + ΔR + U ≤ E_top + ΔR + T = 1` (energy-conserving); and a
+//! lossless stack (white pigment, no absorption) reaches `E_top + ΔR + U = 1` (no energy lost
+//! to the layering).
 //! Under a rough coat the basecoat's specular lobes (metal base, flakes) are seen through the
 //! coat's transmission blur ([`super::coat::TransmissionBlur`]: a wider, still normalised and
 //! symmetric lobe; the pigment is unchanged); `f_b` above and the tables are that blurred
@@ -73,8 +76,9 @@
 //! `eval`. The coat reflection, the pigment and the multiple-scatter lobe stay smooth.
 //!
 //! ## Sampling
-//! `u[0]` picks the top reflection, the single-scatter layer lobe or the multiple-scatter lobe
-//! in proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo)`); the layer lobe
+//! `u[0]` picks the top reflection, the single-scatter layer lobe or the cosine lobe in
+//! proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo) + ΔR(μo)`: the
+//! multiple-scatter lobe and the coat's multiple-scattering reflection, both cosine-sampled); the layer lobe
 //! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX and Beckmann visible
 //! normals) and refracts out. `sample_at` draws the same directions (the pdf does not depend
 //! on the position) and weights them by `eval_at · cos / pdf`.
