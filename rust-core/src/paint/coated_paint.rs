@@ -63,7 +63,8 @@
 //! reference's noise; an absorbing coat is 0.7 % off; flakes and pearlescent flakes 1–2 % on
 //! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
 //! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
-//! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
+//! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low; within 0.6 % with the
+//! coat's multiple-scattering reflection, [`super::coat::MultipleScattering`]); over flakes 2–9 % high
 //! for α 0.1–0.3 (1.5–7 % with the blur); over a sharp metal base (α 0.05) the blur brings the
 //! lobe shape from 5–93 % to 1.6–7.2 % off at θo ≤ 40°, but at θo 75° it stays 21–24 % off at
 //! every coat α.
@@ -1091,7 +1092,8 @@ mod tests {
     /// `E_top + ΔR` at θo 0° / 60° / 75°, α 0.1 / 0.2 / 0.3. Single scattering alone (`E_top`,
     /// the old model) is up to 0.0104 low at 75° (asserted > 0.006 there, so the test fails on
     /// it); with ΔR asserted within 0.004 (measured in the output). A smooth coat has no such
-    /// term (the old values bit for bit: no table), at α 0.001 it is below 1e-4; the lobe is
+    /// term (the old values bit for bit: no table), at α 0.001 it is below 1e-4 (κ fades out
+    /// as α²/(α² + 0.02²); without that it was 8.4e-3 at the grazing node); the lobe is
     /// reciprocal and `E_top + ΔR + T = 1`. ≈ 2 s in release.
     #[test]
     fn rough_coat_reflects_what_the_lossless_interface_reflects() {
