@@ -27,9 +27,11 @@
 //!
 //! ## The model
 //! Outside directions `wi`, `wo`; inside the coat (index η) their refracted versions `wi'`,
-//! `wo'`. With `T(μ) = 1 − E_top(μ)` the energy entering the coat (`E_top = F` for a smooth
-//! coat, the tabulated albedo of the GGX reflection for a rough one), `τ(w')` the Beer-Lambert
-//! transmittance of one crossing and `f_b` the basecoat BRDF:
+//! `wo'`. With `T(μ) = 1 − E_top(μ) − ΔR(μ)` the energy entering the coat (`E_top = F` for a
+//! smooth coat, the tabulated albedo of the GGX reflection for a rough one; `ΔR` the rough
+//! interface's multiple-scattering reflection, [`super::coat::MultipleScattering`], 0 for a
+//! smooth coat), `τ(w')` the Beer-Lambert transmittance of one crossing and `f_b` the basecoat
+//! BRDF (`f_top` is the coat's GGX reflection plus the separable lobe `ΔR(μi)ΔR(μo)/(πΔR̄)`):
 //!
 //! `f = f_top(wi, wo) + T(μi) T(μo)/η² · τ(wi') τ(wo') · f_b(wi', wo') + M(μi) M(μo) / (π M̄)`
 //!
@@ -45,8 +47,9 @@
 //! is exactly `M(μo)`.
 //!
 //! Hence: every term is symmetric in (wi, wo) (reciprocal); the albedo is
-//! `E_top + A1 + M ≤ E_top + U ≤ E_top + T = 1` (energy-conserving); and a lossless stack
-//! (white pigment, no absorption) reaches `E_top + U = 1` (no energy lost to the layering).
+//! `E_top + ΔR + A1 + M ≤ E_top + ΔR + U ≤ E_top + ΔR + T = 1` (energy-conserving); and a
+//! lossless stack (white pigment, no absorption) reaches `E_top + ΔR + U = 1` (no energy lost
+//! to the layering).
 //! Under a rough coat the basecoat's specular lobes (metal base, flakes) are seen through the
 //! coat's transmission blur ([`super::coat::TransmissionBlur`]: a wider, still normalised and
 //! symmetric lobe; the pigment is unchanged); `f_b` above and the tables are that blurred
@@ -60,7 +63,8 @@
 //! reference's noise; an absorbing coat is 0.7 % off; flakes and pearlescent flakes 1–2 % on
 //! average and up to ≈ 10 % (their light returns specularly, not diffusely). Against the
 //! reference with the lossless multiple-scattering rough interface (§8 of the doc): over a
-//! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low); over flakes 2–9 % high
+//! pigment within 1 % up to α 0.2 except at grazing view (3–4.6 % low; within 0.6 % with the
+//! coat's multiple-scattering reflection, [`super::coat::MultipleScattering`]); over flakes 2–9 % high
 //! for α 0.1–0.3 (1.5–7 % with the blur); over a sharp metal base (α 0.05) the blur brings the
 //! lobe shape from 5–93 % to 1.6–7.2 % off at θo ≤ 40°, but at θo 75° it stays 21–24 % off at
 //! every coat α.
@@ -73,8 +77,9 @@
 //! `eval`. The coat reflection, the pigment and the multiple-scatter lobe stay smooth.
 //!
 //! ## Sampling
-//! `u[0]` picks the top reflection, the single-scatter layer lobe or the multiple-scatter lobe
-//! in proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo)`); the layer lobe
+//! `u[0]` picks the top reflection, the single-scatter layer lobe or the cosine lobe in
+//! proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo) + ΔR(μo)`: the
+//! multiple-scatter lobe and the coat's multiple-scattering reflection, both cosine-sampled); the layer lobe
 //! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX and Beckmann visible
 //! normals) and refracts out. `sample_at` draws the same directions (the pdf does not depend
 //! on the position) and weights them by `eval_at · cos / pdf`.
@@ -466,7 +471,7 @@ impl CoatedPaint {
     #[must_use]
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
         [
-            Rgb::splat(self.coat.reflection_eval(wi, wo)),
+            Rgb::splat(self.coat.top_eval(wi, wo)),
             self.layer_term(wi, wo, T::one(), T::one(), PaintParts::ALL),
             self.multiple_term(wi, wo),
         ]
@@ -478,13 +483,15 @@ impl CoatedPaint {
         (self.single.eval(mu), self.multiple.eval(mu))
     }
 
-    /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
+    /// Lobe-selection weights for `wo`: top reflection (single scattering, visible normals),
+    /// single-scatter layer, and the cosine-sampled lobes: the multiple-scatter lobe plus the
+    /// rough coat's multiple-scattering reflection ([`Coat::ms_albedo`], 0 for a smooth coat).
     #[inline(always)]
     fn selection<T: Lanes>(&self, mu_o: T) -> [T; 3] {
         let [a, b, c] = self.single.eval_lanes(mu_o);
         let [d, e, f] = self.multiple.eval_lanes(mu_o);
         let third = T::c(3.0);
-        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third]
+        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third + self.coat.ms_albedo(mu_o)]
     }
 
     /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
@@ -537,7 +544,7 @@ impl CoatedPaint {
         pearl_scale: T,
         parts: PaintParts,
     ) -> Rgb<T> {
-        let mut f = if parts.coat { Rgb::splat(self.coat.reflection_eval(wi, wo)) } else { Rgb::zero() };
+        let mut f = if parts.coat { Rgb::splat(self.coat.top_eval(wi, wo)) } else { Rgb::zero() };
         if parts.pigment || parts.glossy {
             f += self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
         }
@@ -558,11 +565,12 @@ impl CoatedPaint {
         }
         let zero = T::c(0.0);
         let share = self.base.selection_share(parts.base());
-        [
-            if parts.coat { s[0] } else { zero },
-            if share > 0.0 { s[1] * T::c(share) } else { zero },
-            if parts.pigment { s[2] } else { zero },
-        ]
+        // The cosine-sampled weight holds the multiple-scatter lobe (pigment) and the coat's
+        // multiple-scattering reflection (coat).
+        let [d, e, f] = self.multiple.eval_lanes(mu_o);
+        let cosine = if parts.pigment { (d + e + f) / T::c(3.0) } else { zero }
+            + if parts.coat { self.coat.ms_albedo(mu_o) } else { zero };
+        [if parts.coat { s[0] } else { zero }, if share > 0.0 { s[1] * T::c(share) } else { zero }, cosine]
     }
 
     /// The mixture density for `wo`'s lobe-selection weights `s` (restricted to `parts`, as
@@ -577,7 +585,7 @@ impl CoatedPaint {
                 s[1] * self.base.pdf_parts(wi_in, wo_in, parts.base()) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
             p += keep(lanes::gt(s[1], T::c(0.0)), layer);
         }
-        if parts.pigment {
+        if parts.pigment || parts.coat {
             p += s[2] * cosine_hemisphere_pdf(wi.z);
         }
         keep(lanes::gt(total, T::c(0.0)), p / total)
@@ -1087,6 +1095,79 @@ mod tests {
             );
             assert!(err < 0.10, "θo {theta}°: lobe-shape error {err}");
         }
+    }
+
+    /// Issue 17, item 3: the rough coat's multiple-scattering reflection
+    /// ([`super::super::coat::MultipleScattering`]). Against the lossless interface's walk
+    /// (Heitz et al. 2016; 400 000 walks per direction, σ ≤ 7e-4): the coat's reflected energy
+    /// `E_top + ΔR` at θo 0° / 60° / 75°, α 0.1 / 0.2 / 0.3. Single scattering alone (`E_top`,
+    /// the old model) is up to 0.0104 low at 75° (asserted > 0.006 there, so the test fails on
+    /// it); with ΔR asserted within 0.004 (measured in the output). A smooth coat has no such
+    /// term (the old values bit for bit: no table), at α 0.001 it is below 1e-4 (κ fades out
+    /// as α²/(α² + 0.02²); without that it was 8.4e-3 at the grazing node); the lobe is
+    /// reciprocal and `E_top + ΔR + T = 1`. ≈ 2 s in release.
+    #[test]
+    fn rough_coat_reflects_what_the_lossless_interface_reflects() {
+        use crate::paint::coat::Coat;
+        use crate::paint::rough_dielectric::RoughDielectric;
+        let smooth = Coat::new(1.5, 0.0, 40.0, [0.0; 3]);
+        assert!(smooth.multiple_scattering().is_none());
+        assert_eq!(smooth.ms_albedo(0.3f64), 0.0);
+        let tiny = Coat::new(1.5, 0.001, 40.0, [0.0; 3]);
+        let worst_tiny = (0..=20).map(|k| tiny.ms_albedo(k as f64 / 20.0)).fold(0.0f64, f64::max);
+        eprintln!("α 0.001: largest ΔR {worst_tiny:.2e}");
+        assert!(worst_tiny < 1e-4, "{worst_tiny}");
+        let walks = 400_000;
+        for alpha in [0.1, 0.2, 0.3] {
+            let coat = Coat::new(1.5, alpha, 40.0, [0.0; 3]);
+            let top = RoughDielectric { eta: 1.5, alpha };
+            eprintln!("α {alpha}: κ {:.4}", coat.multiple_scattering().unwrap().kappa);
+            for theta in [0.0f64, 60.0, 75.0] {
+                let mu = theta.to_radians().cos();
+                let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let mut rng = crate::rng::Pcg32::new(0x3c, theta as u64);
+                let up =
+                    (0..walks).filter(|_| top.sample_multiple(wo, &mut rng).is_some_and(|(w, _)| w.z > 0.0)).count();
+                let r = up as f64 / walks as f64;
+                let (old, ms) = (coat.reflectance(mu), coat.ms_albedo(mu));
+                let new = old + ms;
+                eprintln!(
+                    "α {alpha} θo {theta}°: walk {r:.4} ± {:.4}; E_top {old:.4} ({:+.4}), E_top + ΔR {new:.4} ({:+.4})",
+                    (r * (1.0 - r) / walks as f64).sqrt(),
+                    old - r,
+                    new - r
+                );
+                assert!((new - r).abs() < 0.004, "α {alpha} θo {theta}°: {new} vs {r}");
+                if theta == 75.0 {
+                    assert!(r - old > 0.006, "α {alpha}: single scattering should miss: {old} vs {r}");
+                }
+                assert!((coat.transmittance(mu) + new - 1.0).abs() < 1e-12);
+                let wi = Vec3::new(-0.3f64, 0.5, 0.812_403_840_463_596).normalize();
+                let (a, b) = (coat.ms_eval(wi, wo), coat.ms_eval(wo, wi));
+                assert!((a - b).abs() <= 1e-15 * a, "{a} vs {b}");
+            }
+        }
+    }
+
+    /// Issue 17, item 3: a pigment under a rough coat (α 0.2) at grazing view (θo 75°): the
+    /// analytic albedo against the lossless reference, 100 000 walks (±0.7 %). Without the
+    /// coat's multiple-scattering reflection −4.6 % (§8, 400 000 walks); asserted within 2.5 %
+    /// (measured in the output). ≈ 0.5 s in release.
+    #[test]
+    fn rough_coat_pigment_albedo_at_grazing_view_matches_the_reference() {
+        use crate::paint::position_free_mc::PositionFreeMc;
+        let p = paint(
+            r#"{"model": "coated_paint", "coat_roughness": 0.2, "flake_density": 0, "base_color": [0.5, 0.03, 0.03]}"#,
+        );
+        let mu = 75f64.to_radians().cos();
+        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let reference = PositionFreeMc::new(&p).albedo(wo, 100_000, 75);
+        let (a1, m) = p.layer_albedos(mu);
+        let top = p.coat().reflectance(mu) + p.coat().ms_albedo(mu);
+        let ours = Rgb::new(top + a1[0] + m[0], top + a1[1] + m[1], top + a1[2] + m[2]).luminance();
+        let (r, se) = (reference.value.luminance(), reference.std_error.luminance());
+        eprintln!("θo 75°: analytic {ours:.5}, reference {r:.5} ± {se:.5}: {:+.2} %", 100.0 * (ours / r - 1.0));
+        assert!((ours / r - 1.0).abs() < 0.025, "{ours} vs {r}");
     }
 
     /// No coat (η = 1, no absorption) over a Lambert pigment is exactly Lambert: the layering

@@ -273,6 +273,8 @@ pub(crate) struct Element<L: Lanes> {
     cw: [[L; 3]; 4],
     bounce: [L; 3],
     norm: [L; 3],
+    /// `1/(π ΔR̄)` of the coat's multiple-scattering reflection at the element's α (α grid only).
+    ms_norm: L,
     /// Basecoat lobe-selection weights: pigment, metal, flakes.
     base_sel: [L; 3],
     /// Pigment weight `(1 − c − c_p)(1 − m)`.
@@ -290,6 +292,11 @@ pub struct VaryingPaint {
     alpha_ln: Vec<f64>,
     /// `E_top(μ)` per α node (`E_NODES` each); unused when α does not vary.
     e_top: Flat,
+    /// The coat's multiple-scattering reflection `ΔR(μ)` per α node (`E_NODES` each,
+    /// [`super::coat::MultipleScattering`]); unused when α does not vary.
+    ms_top: Flat,
+    /// Its cosine average `ΔR̄` per α node.
+    ms_avg: Flat,
     /// The layer tables per [`Vary::index`].
     folded: Vec<Folded>,
     /// Escape probability `e` per α node.
@@ -390,9 +397,17 @@ impl VaryingPaint {
             })
             .collect();
         let mut e_top = vec![0.0; na * E_NODES];
+        let (mut ms_top, mut ms_avg) = (vec![0.0; na * E_NODES], vec![0.0; na]);
         for (j, cj) in coats.iter().enumerate() {
             for m in 0..E_NODES {
                 e_top[j * E_NODES + m] = cj.reflectance(m as f64 / (E_NODES - 1) as f64);
+            }
+            if let Some(ms) = cj.multiple_scattering() {
+                // The coat's own nodes (E_NODES of them), so interpolation agrees.
+                for (m, v) in ms.albedo.values().iter().enumerate().take(E_NODES) {
+                    ms_top[j * E_NODES + m] = v[0];
+                }
+                ms_avg[j] = ms.albedo.cosine_average()[0];
             }
         }
         let flakes_possible = unit_flakes(1.0, pearl_c);
@@ -405,6 +420,8 @@ impl VaryingPaint {
             alpha_ln: alphas.iter().map(|a| a.ln()).collect(),
             coat,
             e_top: Flat::new(e_top),
+            ms_top: Flat::new(ms_top),
+            ms_avg: Flat::new(ms_avg),
             folded,
             escape: Flat::new(escape),
             tau,
@@ -570,7 +587,13 @@ impl VaryingPaint {
             if self.metal.is_some() { lanes::max(w_metal, floor) } else { zero },
             keep(flakes_present, lanes::max(w_flakes, floor)),
         ];
-        Element { cfg, rho, c, alpha, at, cw, bounce, norm, base_sel, pigment_weight, metal_weight }
+        let ms_norm = if self.varies_alpha() {
+            let avg = self.alpha_lerp1(&self.ms_avg, &at);
+            lanes::select(lanes::gt(avg, L::c(1e-12)), one / (L::c(std::f64::consts::PI) * avg), zero)
+        } else {
+            zero
+        };
+        Element { cfg, rho, c, alpha, at, cw, bounce, norm, ms_norm, base_sel, pigment_weight, metal_weight }
     }
 
     /// A per-α-node value (`flat` holds one per node) at the element's α.
@@ -631,9 +654,31 @@ impl VaryingPaint {
         self.lookup(&self.e_top, E_NODES, &e.at, &mu_at(mu, E_NODES))
     }
 
+    /// Energy the coat's multiple scattering reflects for incidence `μ` (`Coat::ms_albedo`).
+    #[inline(always)]
+    fn ms_albedo<L: Lanes>(&self, e: &Element<L>, mu: L) -> L {
+        if !self.varies_alpha() || !self.coat.has_interface() {
+            return self.coat.ms_albedo(mu);
+        }
+        self.lookup(&self.ms_top, E_NODES, &e.at, &mu_at(mu, E_NODES))
+    }
+
+    /// Energy entering the coat for incidence `μ`, as `Coat::transmittance`.
     #[inline(always)]
     fn transmittance<L: Lanes>(&self, e: &Element<L>, mu: L) -> L {
-        lanes::max(L::c(1.0) - self.reflectance(e, mu), L::c(0.0))
+        if !self.varies_alpha() {
+            return self.coat.transmittance(mu);
+        }
+        self.transmittance_of(self.reflectance(e, mu), self.ms_albedo(e, mu))
+    }
+
+    /// `1 − E_top − ΔR` from the two reflected energies (as `Coat::transmittance`).
+    #[inline(always)]
+    fn transmittance_of<L: Lanes>(&self, reflectance: L, ms: L) -> L {
+        if !self.varies_alpha() && self.coat.multiple_scattering().is_none() {
+            return lanes::max(L::c(1.0) - reflectance, L::c(0.0));
+        }
+        lanes::max(L::c(1.0) - reflectance - ms, L::c(0.0))
     }
 
     #[inline(always)]
@@ -645,7 +690,7 @@ impl VaryingPaint {
     #[inline(always)]
     fn top_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
         if !self.varies_alpha() {
-            return self.coat.reflection_eval(wi, wo);
+            return self.coat.top_eval(wi, wo);
         }
         if !self.coat.has_interface() {
             return L::c(0.0);
@@ -654,7 +699,9 @@ impl VaryingPaint {
         let mf = Self::coat_microfacet(e);
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
         let f = fresnel::dielectric(wo.dot(h), L::c(self.coat.ior)) * mf.d(h) * g / (L::c(4.0) * wi.z * wo.z);
-        keep(defined & lanes::gt(g, L::c(0.0)), f)
+        // The multiple-scattering reflection ΔR(μi) ΔR(μo)/(π ΔR̄) at the element's α.
+        let ms = self.ms_albedo(e, wi.z) * self.ms_albedo(e, wo.z) * e.ms_norm;
+        keep(defined & lanes::gt(g, L::c(0.0)), f) + ms
     }
 
     #[inline(always)]
@@ -791,7 +838,7 @@ impl VaryingPaint {
     #[inline(always)]
     fn at_wo<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>) -> AtWo<L> {
         let m = mu_at(wo.z, NODES);
-        AtWo { m, multiple: self.multiple(e, &m), reflectance: self.reflectance(e, wo.z) }
+        AtWo { m, multiple: self.multiple(e, &m), reflectance: self.reflectance(e, wo.z), ms: self.ms_albedo(e, wo.z) }
     }
 
     /// `f_r` of the element given its values at `wo`.
@@ -800,7 +847,7 @@ impl VaryingPaint {
         let top = self.top_eval(e, wi, wo);
         let (a, b) = (self.multiple(e, &mu_at(wi.z, NODES)), o.multiple);
         let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
-        let (ti, to) = (self.transmittance(e, wi.z), lanes::max(L::c(1.0) - o.reflectance, L::c(0.0)));
+        let (ti, to) = (self.transmittance(e, wi.z), self.transmittance_of(o.reflectance, o.ms));
         Rgb::splat(top) + self.layer_term(e, wi, wo, ti, to) + m
     }
 
@@ -825,7 +872,7 @@ impl VaryingPaint {
         let [a, b, c] = self.single(e, &o.m);
         let [d, f, g] = o.multiple;
         let third = L::c(3.0);
-        [o.reflectance, (a + b + c) / third, (d + f + g) / third]
+        [o.reflectance, (a + b + c) / third, (d + f + g) / third + o.ms]
     }
 
     #[inline(always)]
@@ -897,6 +944,8 @@ struct AtWo<L> {
     m: MuAt<L>,
     multiple: [L; 3],
     reflectance: L,
+    /// The coat's multiple-scattering reflection `ΔR(μo)`.
+    ms: L,
 }
 
 /// The layer tables of one component (or one basis combination of components), f64.

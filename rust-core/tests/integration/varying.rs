@@ -187,7 +187,8 @@ fn table_free_terms_and_density_equal_the_material_per_element() {
                     }
                     let (a1, mm) = cp.layer_albedos(wo.z);
                     let mean = |x: [f64; 3]| (x[0] + x[1] + x[2]) / 3.0;
-                    let sel = [cp.coat().reflectance(wo.z), mean(a1), mean(mm)];
+                    // (the cosine lobe's weight holds the coat's multiple-scattering reflection)
+                    let sel = [cp.coat().reflectance(wo.z), mean(a1), mean(mm) + cp.coat().ms_albedo(wo.z)];
                     let (got, want) =
                         (vp.pdf_with_selection(e.0, e.1 / 100.0, alpha, *wi, *wo, sel), mat.pdf(*wi, *wo));
                     let err = (got - want).abs() / want.abs().max(1e-6);
@@ -288,7 +289,13 @@ fn alpha_interpolation_error_against_fixed_alpha_tables() {
         }
     }
     eprintln!("worst: top {:.2e} layer {:.2e} multiple {:.2e} pdf {:.2e}", worst[0], worst[1], worst[2], worst[3]);
-    assert!(worst.iter().all(|&w| w < 6e-3), "{worst:?}");
+    // Layer and multiple scatter as before (measured 1.0e-3 / 4.1e-3). Since issue 17 item 3.1
+    // the top reflection holds the coat's multiple-scattering lobe ΔR(μi)ΔR(μo)/(πΔR̄), whose ΔR
+    // is read from the α grid (the GGX lobe itself stays exact): measured 1.7e-2 at grazing pairs
+    // (α 0.02), asserted 3e-2; the pdf's cosine weight holds ΔR too: measured 8.2e-3 (α 0.07),
+    // asserted 1e-2 (5.0e-3 before the term).
+    assert!(worst[1] < 6e-3 && worst[2] < 6e-3, "{worst:?}");
+    assert!(worst[0] < 3e-2 && worst[3] < 1e-2, "{worst:?}");
 }
 
 /// Every SIMD level (and scalar f32) against the f64 reference of the same call, per element:
