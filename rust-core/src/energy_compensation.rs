@@ -917,7 +917,7 @@ impl AlbedoTable {
         debug_assert_eq!(self.n_phi, 1, "cell_lanes needs an isotropic table");
         let mu = lanes::clamp(mu, L::c(0.0), L::c(1.0));
         let (eps, span) = (L::Elem::of(self.eps[0]), L::Elem::of(self.inv_log_span[0]));
-        let s = ln_1p_lanes(lanes::div_fast(mu, L::splat(eps))) * L::splat(span);
+        let s = ln_1p_lanes(mu / L::splat(eps)) * L::splat(span);
         let x = lanes::clamp(s * L::c((N_MU - 1) as f64), L::c(0.0), L::c((N_MU - 1) as f64));
         let j = lanes::min(x.floor_(), L::c((N_MU - 2) as f64));
         (j, x - j)
@@ -1080,8 +1080,7 @@ fn azimuth_offset(alpha_x: f64, alpha_y: f64) -> f64 {
 /// of [`AlbedoTable::loss`] bit for bit), otherwise `u = 1 + x = 2^e·m` with `m ∈ [√½, √2)`
 /// found by a branch-free binary search on the exponent, `ln m = 2 atanh((m − 1)/(m + 1))` by
 /// its series to the 11th power (truncation < 1e-10), and the rounding of `1 + x` corrected by
-/// the factor `x/(u − 1)` (both divisions by [`lanes::div_fast`], ≤ 2 ulp each). A few ulp
-/// in f32; only the table coordinate uses it.
+/// the factor `x/(u − 1)`. About 1 ulp in f32; only the table coordinate uses it.
 #[inline(always)]
 fn ln_1p_lanes<L: Lanes>(x: L) -> L {
     if L::WIDTH == 1 {
@@ -1099,7 +1098,7 @@ fn ln_1p_lanes<L: Lanes>(x: L) -> L {
     let big = lanes::gt(m, L::c(std::f64::consts::SQRT_2));
     m = lanes::select(big, m * L::c(0.5), m);
     e += lanes::keep(big, one);
-    let z = lanes::div_fast(m - one, m + one);
+    let z = (m - one) / (m + one);
     let w = z * z;
     let mut p = L::c(1.0 / 11.0);
     for c in [1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0, 1.0] {
@@ -1107,7 +1106,7 @@ fn ln_1p_lanes<L: Lanes>(x: L) -> L {
     }
     // e·ln 2 in two parts (Cody-Waite) so that e·C1 is exact.
     let ln_u = e.mul_add_(L::c(0.693_359_375), e.mul_add_(L::c(-2.121_944_400_546_905_8e-4), L::c(2.0) * z * p));
-    lanes::select(lanes::eq(u, one), x, ln_u * lanes::div_fast(x, u - one))
+    lanes::select(lanes::eq(u, one), x, ln_u * (x / (u - one)))
 }
 
 /// Splits a table coordinate `x ∈ [0, n−1]` into a cell index and a fraction.

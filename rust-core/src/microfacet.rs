@@ -88,8 +88,8 @@ impl<T: Lanes> Microfacet<T> {
     #[must_use]
     pub fn d(&self, m: Vec3<T>) -> T {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
-        let sx = lanes::div_fast(m.x, ax);
-        let sy = lanes::div_fast(m.y, ay);
+        let sx = m.x / ax;
+        let sy = m.y / ay;
         let z2 = m.z * m.z;
         let pi = T::c(std::f64::consts::PI);
         let d = match self.kind {
@@ -98,9 +98,8 @@ impl<T: Lanes> Microfacet<T> {
                 lanes::div_fast(T::c(1.0), pi * ax * ay * t * t)
             }
             DistributionKind::Beckmann => {
-                // Both quotients are masked below where z2 = 0.
-                let e = lanes::div_fast(sx * sx + sy * sy, z2);
-                lanes::div_fast(lanes::exp(-e), pi * ax * ay * z2 * z2)
+                let e = (sx * sx + sy * sy) / z2;
+                lanes::exp(-e) / (pi * ax * ay * z2 * z2)
             }
         };
         keep(gt(m.z, T::c(0.0)), d)
@@ -115,7 +114,7 @@ impl<T: Lanes> Microfacet<T> {
             DistributionKind::Ggx => {
                 // (√(1 + α²tan²θ) − 1)/2 written without cancellation.
                 let t = a2_sin2 / cos2_theta(w);
-                lanes::div_fast(t, T::c(2.0) * (T::c(1.0) + lanes::sqrt(T::c(1.0) + t)))
+                t / (T::c(2.0) * (T::c(1.0) + lanes::sqrt(T::c(1.0) + t)))
             }
             DistributionKind::Beckmann => beckmann_lambda(w.z, a2_sin2),
         };
@@ -148,11 +147,7 @@ impl<T: Lanes> Microfacet<T> {
         let front = gt(wi.dot(m), T::c(0.0)) & gt(wo.dot(m), T::c(0.0));
         let g = match masking {
             MaskingKind::Separable => self.g1(wi, m) * self.g1(wo, m),
-            // Λ is infinite at or below the horizon: G is 0 there (masked, as div_fast needs).
-            MaskingKind::HeightCorrelated => keep(
-                gt(wi.z, T::c(0.0)) & gt(wo.z, T::c(0.0)),
-                lanes::div_fast(T::c(1.0), T::c(1.0) + self.lambda(wi) + self.lambda(wo)),
-            ),
+            MaskingKind::HeightCorrelated => T::c(1.0) / (T::c(1.0) + self.lambda(wi) + self.lambda(wo)),
             MaskingKind::VGroove => g_vgroove(wi, wo, m),
         };
         keep(front, g)
@@ -339,10 +334,9 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
 /// scalar paths and the f32 polynomial in SIMD lanes ([`lanes::erfc`]).
 #[inline(always)]
 fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
-    // The callers mask a2_sin2 = 0 (Λ = 0) and cos θ ≤ 0 (Λ = ∞), where div_fast is unspecified.
-    let a = lanes::div_fast(cos_theta, lanes::sqrt(a2_sin2));
+    let a = cos_theta / lanes::sqrt(a2_sin2);
     let inv_sqrt_pi = T::c(0.5 * std::f64::consts::FRAC_2_SQRT_PI);
-    let l = lanes::max(lanes::div_fast(lanes::exp(-a * a) * inv_sqrt_pi, a) - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
+    let l = lanes::max(lanes::exp(-a * a) * inv_sqrt_pi / a - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
     keep(le(a, T::c(26.0)), l)
 }
 
@@ -440,7 +434,7 @@ pub fn g_vgroove<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
 #[must_use]
 pub fn reflection_jacobian<T: Lanes>(wo: Vec3<T>, h: Vec3<T>) -> T {
     let oh = lanes::abs(wo.dot(h));
-    keep(gt(oh, T::c(0.0)), lanes::div_fast(T::c(1.0), T::c(4.0) * oh))
+    keep(gt(oh, T::c(0.0)), T::c(1.0) / (T::c(4.0) * oh))
 }
 
 #[cfg(test)]

@@ -298,7 +298,7 @@ fn remap<L: Lanes>(f: L, f0_real: f64) -> L {
     if !(f0_real < 1.0) {
         return L::c(0.0);
     }
-    lanes::clamp(lanes::div_fast(f - L::c(f0_real), L::c(1.0) - L::c(f0_real)), L::c(0.0), L::c(1.0))
+    lanes::clamp((f - L::c(f0_real)) / (L::c(1.0) - L::c(f0_real)), L::c(0.0), L::c(1.0))
 }
 
 /// The tabulated albedos of a rough lobe.
@@ -443,7 +443,7 @@ impl Lobe {
         };
         let e_loss = a.e.loss_at_lanes(cell);
         let e = lanes::max(L::c(1.0) - e_loss, L::c(1e-4));
-        let missing = lanes::div_fast(L::c(1.0) - e, e);
+        let missing = (L::c(1.0) - e) / e;
         let scale = Rgb::from_array(a.f_ms).map(|f| L::c(1.0) + f * missing);
         let mut s = Rgb::zero();
         for (t, coef) in &a.terms {
@@ -645,7 +645,7 @@ impl Principled {
             };
             p += lanes::keep(lanes::gt(s, zero), s * pdf);
         }
-        lanes::keep(lanes::gt(total, zero), lanes::div_fast(p, total))
+        lanes::keep(lanes::gt(total, zero), p / total)
     }
 }
 
@@ -683,7 +683,7 @@ fn tinted<L: Lanes>(t: f64, depth: L, cw: L) -> L {
 /// Mean of the three channels (as [`Rgb::average`]), per lane.
 #[inline(always)]
 fn average<L: Lanes>(c: Rgb<L>) -> L {
-    lanes::div_fast(c.r + c.g + c.b, L::c(3.0))
+    (c.r + c.g + c.b) / L::c(3.0)
 }
 
 /// Largest channel (as [`Rgb::max_channel`]), per lane.
