@@ -115,7 +115,7 @@ impl FlakeLayer {
                 (dg, lanes::gt(dg, T::c(0.0)))
             }
         };
-        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z); // masked below where G = 0
+        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (dg / (T::c(4.0) * wi.z * wo.z));
         Rgb::select(defined & ok, f, Rgb::zero())
     }
 
