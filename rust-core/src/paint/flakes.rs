@@ -246,7 +246,7 @@ mod tests {
     /// On the lobe alone the visible-normal weights are nearly constant for small α, so the
     /// ratio is large there (71× at α 0.21, cos θo 0.9: relative deviation 0.8 % → 7 %); in the
     /// whole paint's sample weight (lobe selection, coat, pigment) the flakes' extra variance
-    /// is 0–3 % (docs/speed.md), against 25 % less time per sample.
+    /// is 0–3 % (docs/speed.md), against 18–32 % less time per sample.
     #[test]
     fn projected_area_sampler_is_unbiased_and_no_noisier() {
         let n = 200_000;
