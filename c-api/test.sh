@@ -29,14 +29,15 @@ if [ "$keep" = 0 ]; then trap 'rm -rf "$work"' EXIT; else echo "work dir: $work"
 prefix="$work/prefix"
 
 passed=0 failed=0 failures=()
-step() { # step NAME COMMAND...: runs and counts one step
-    local name="$1"; shift
+step() { # step NAME COMMAND...: runs, times and counts one step
+    local name="$1" start=$SECONDS; shift
     echo "=== $name"
     if "$@"; then
         passed=$((passed + 1))
+        echo "--- ($((SECONDS - start)) s) $name"
     else
         failed=$((failed + 1)); failures+=("$name")
-        echo "--- FAILED: $name"
+        echo "--- FAILED ($((SECONDS - start)) s): $name"
     fi
 }
 

@@ -7,9 +7,21 @@
 #
 # Needs the nightly toolchain and cargo-fuzz. No silent skip: it installs cargo-fuzz (crates.io,
 # pinned) when absent, and fails if the nightly toolchain cannot be had.
+#
+# `--build-only` installs what is missing and builds the instrumented targets, then stops:
+# scripts/test.sh runs it in the background beside the single-threaded steps before this one
+# (the ASan build of the core is one codegen unit, so it keeps one core busy for minutes), and
+# the later full run finds the build done.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cd "$here"
+build_only=0
+for a in "$@"; do
+  case "$a" in
+    --build-only) build_only=1 ;;
+    *) echo "fuzz/smoke.sh: unknown option $a" >&2; exit 2 ;;
+  esac
+done
 seconds="${LACQUER_FUZZ_SECONDS:-10}"
 targets=(material_json merl_table render_scene capi_calls)
 
@@ -31,6 +43,10 @@ export CARGO_TARGET_DIR="${LACQUER_FUZZ_TARGET_DIR:-$here/target}"
 # suppressed by its innermost glibc frame only, see fuzz/lsan.supp.
 export LSAN_OPTIONS="suppressions=$here/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 cargo +nightly fuzz build
+if [ "$build_only" = 1 ]; then
+  echo "fuzz: ${#targets[@]} targets built"
+  exit 0
+fi
 work="$(mktemp -d "${TMPDIR:-/tmp}/lacquer-fuzz-smoke.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
 for t in "${targets[@]}"; do

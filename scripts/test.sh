@@ -35,8 +35,17 @@ step() {
   step_name="$*" step_start=$SECONDS
   printf '\n==== %s\n' "$*"
 }
+kill_tree() { # kill_tree PID: a background job and everything it started
+  local child
+  for child in $(pgrep -P "$1" 2>/dev/null); do kill_tree "$child"; done
+  kill "$1" 2>/dev/null || true
+}
 summary() {
   local rc=$? i
+  # A step failed before the fuzz step waited for its background build: stop the build.
+  if [ -n "${fuzz_build_pid:-}" ] && kill -0 "$fuzz_build_pid" 2>/dev/null; then
+    kill_tree "$fuzz_build_pid"
+  fi
   end_step
   step_name=""
   printf '\n==== step durations (%s)\n' "$([ "$rc" = 0 ] && echo "all passed" || echo "FAILED, exit $rc")"
@@ -87,6 +96,15 @@ cargo run --release -q -p lacquer-cli -- check --all --profile ci
 # Smoke runs of the speed tooling (the full runs are documented commands, not CI steps):
 # lacquer bench on a lane model and a scalar one, the speed-vs-error report and the side-by-side
 # comparison with Mitsuba 3 at n = 1e5 (docs/speed.md).
+# The fuzz step's instrumented build (ASan, the core in one codegen unit: minutes of one
+# core) runs in the background from here on, beside the mostly single-threaded steps up to the
+# fuzz step (docs/reliability.md, "CI duration, fourth pass"); the fuzz step waits for it and
+# fails with its log if it failed.
+[ -f fuzz/smoke.sh ] || { echo "sub-suite fuzz/smoke.sh is missing: a missing suite fails CI" >&2; exit 1; }
+fuzz_build_log="$(mktemp "${TMPDIR:-/tmp}/lacquer-fuzz-build.XXXXXX")"
+nice -n 5 bash fuzz/smoke.sh --build-only >"$fuzz_build_log" 2>&1 &
+fuzz_build_pid=$!
+
 step "speed tooling smoke: lacquer bench --quick, bench --report --quick, bench --max-error"
 cargo run --release -q -p lacquer-cli -- bench --quick --model rough_conductor >/dev/null
 cargo run --release -q -p lacquer-cli -- bench --report --quick >/dev/null
@@ -109,6 +127,12 @@ bash c-api/test.sh --skip-rust
 # Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 10 s each from their
 # committed corpora; installs cargo-fuzz when absent and fails without the nightly toolchain.
 step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 10 s)"
+fuzz_build_rc=0
+wait "$fuzz_build_pid" || fuzz_build_rc=$?
+cat "$fuzz_build_log"
+rm -f "$fuzz_build_log"
+fuzz_build_pid=""
+[ "$fuzz_build_rc" = 0 ] || { echo "fuzz/smoke.sh --build-only failed (exit $fuzz_build_rc)" >&2; exit 1; }
 bash fuzz/smoke.sh
 step "mitsuba-plugin/test.sh"
 bash mitsuba-plugin/test.sh

@@ -252,9 +252,7 @@ pub unsafe extern "C" fn lq_image_rgba(img: *const lq_image) -> *const f32 {
 #[must_use]
 pub unsafe extern "C" fn lq_image_albedo(img: *const lq_image) -> *const f32 {
     // SAFETY: the caller's contract above.
-    guard_value(std::ptr::null(), || {
-        unsafe { img.as_ref() }.and_then(|i| i.albedo.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
-    })
+    guard_value(std::ptr::null(), || unsafe { optional_layer(img, |i| &i.albedo) })
 }
 
 /// First-hit world-space shading normal (width × height × 3 floats), or NULL without AOVs.
@@ -265,9 +263,7 @@ pub unsafe extern "C" fn lq_image_albedo(img: *const lq_image) -> *const f32 {
 #[must_use]
 pub unsafe extern "C" fn lq_image_normal(img: *const lq_image) -> *const f32 {
     // SAFETY: the caller's contract above.
-    guard_value(std::ptr::null(), || {
-        unsafe { img.as_ref() }.and_then(|i| i.normal.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
-    })
+    guard_value(std::ptr::null(), || unsafe { optional_layer(img, |i| &i.normal) })
 }
 
 /// Diffuse Color (as Cycles' pass): the first hit's diffuse lobe group's directional albedo
@@ -280,9 +276,7 @@ pub unsafe extern "C" fn lq_image_normal(img: *const lq_image) -> *const f32 {
 #[must_use]
 pub unsafe extern "C" fn lq_image_diffuse_color(img: *const lq_image) -> *const f32 {
     // SAFETY: the caller's contract above.
-    guard_value(std::ptr::null(), || {
-        unsafe { img.as_ref() }.and_then(|i| i.diffuse_color.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
-    })
+    guard_value(std::ptr::null(), || unsafe { optional_layer(img, |i| &i.diffuse_color) })
 }
 
 /// Glossy Color: the same for the glossy groups (`LQ_LOBE_GLOSSY | LQ_LOBE_COAT`: flakes,
@@ -295,9 +289,17 @@ pub unsafe extern "C" fn lq_image_diffuse_color(img: *const lq_image) -> *const 
 #[must_use]
 pub unsafe extern "C" fn lq_image_glossy_color(img: *const lq_image) -> *const f32 {
     // SAFETY: the caller's contract above.
-    guard_value(std::ptr::null(), || {
-        unsafe { img.as_ref() }.and_then(|i| i.glossy_color.as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
-    })
+    guard_value(std::ptr::null(), || unsafe { optional_layer(img, |i| &i.glossy_color) })
+}
+
+/// The pointer to an optional image layer, or NULL for a NULL image or a layer the job did
+/// not ask for (the four optional-layer getters above).
+///
+/// # Safety
+/// `img` is NULL or a live image.
+unsafe fn optional_layer(img: *const lq_image, layer: impl Fn(&lq_image) -> &Option<Vec<f32>>) -> *const f32 {
+    // SAFETY: the caller's contract above.
+    unsafe { img.as_ref() }.and_then(|i| layer(i).as_ref()).map_or(std::ptr::null(), |v| v.as_ptr())
 }
 
 /// Releases an image. NULL is a no-op.
