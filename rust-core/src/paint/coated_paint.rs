@@ -80,8 +80,8 @@
 //! `u[0]` picks the top reflection, the single-scatter layer lobe or the cosine lobe in
 //! proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo) + ΔR(μo)`: the
 //! multiple-scatter lobe and the coat's multiple-scattering reflection, both cosine-sampled); the layer lobe
-//! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX and Beckmann visible
-//! normals) and refracts out. `sample_at` draws the same directions (the pdf does not depend
+//! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX visible normals, the
+//! flakes' Beckmann `D(m) cos θm`) and refracts out. `sample_at` draws the same directions (the pdf does not depend
 //! on the position) and weights them by `eval_at · cos / pdf`.
 //!
 //! ## References
