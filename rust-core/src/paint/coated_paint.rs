@@ -92,7 +92,7 @@
 
 use super::basecoat::{BaseParts, Basecoat, MetalBase};
 use super::coat::Coat;
-use super::flakes::FlakeLayer;
+use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use super::sparkle::Sparkle;
 use super::thin_film::ThinFilm;
@@ -766,7 +766,7 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
     let mut rho_bar = [0.0; 3];
     for k in 0..n {
         let w = cosine_hemisphere(radical_inverse_base(5, k + 1), radical_inverse_base(7, k + 1));
-        if let Some(s) = base.sample(w, super::hammersley3(k, n)) {
+        if let Some(s) = base.sample_by(w, super::hammersley3(k, n), FlakeSampler::Visible) {
             for (c, r) in rho_bar.iter_mut().enumerate() {
                 *r += s.weight[c] / n as f64;
             }
@@ -822,7 +822,7 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
         let a_w = coat.attenuation(w_in.z);
         let (mut up, mut out) = ([0.0; 3], [0.0; 3]);
         for u in &points {
-            let Some(s) = base.sample(w_in, *u) else { continue };
+            let Some(s) = base.sample_by(w_in, *u, FlakeSampler::Visible) else { continue };
             let a_v = coat.attenuation(s.wi.z);
             let esc = coat.refract_out(s.wi).map_or(0.0, |v| coat.transmittance(v.z));
             for c in 0..3 {
