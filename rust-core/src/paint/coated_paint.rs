@@ -81,7 +81,8 @@
 //! proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo) + ΔR(μo)`: the
 //! multiple-scatter lobe and the coat's multiple-scattering reflection, both cosine-sampled); the layer lobe
 //! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX visible normals, the
-//! flakes' Beckmann `D(m) cos θm`) and refracts out. `sample_at` draws the same directions (the pdf does not depend
+//! flakes' Beckmann `D(m) cos θm`; the layer tables are built with the flakes' visible
+//! normals instead, which give lower-variance estimates) and refracts out. `sample_at` draws the same directions (the pdf does not depend
 //! on the position) and weights them by `eval_at · cos / pdf`.
 //!
 //! ## References
@@ -776,6 +777,8 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
 }
 
 /// Builds `A1(μ)` and `M(μ)` (see the module docs) by stratified sampling of the basecoat.
+/// The flakes are sampled by their visible normals here ([`FlakeSampler::Visible`]: lower
+/// variance than the render-time closed form, see docs/speed.md).
 fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
     // Mean escape probability e, mean crossing transmittance τ̄ (cosine-distributed light
     // inside), and the basecoat's mean albedo ρ̄ for cosine-distributed incidence.
