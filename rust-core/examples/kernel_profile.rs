@@ -1,7 +1,7 @@
 //! Profiling aid: runs one batch operation of one material in a loop, so `perf record` /
 //! `valgrind --tool=callgrind` see only that kernel.
 //!
-//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|sample> [n] [iterations] [threads, default 1]`
+//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1]`
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
 use lacquer::Material;
 
@@ -11,7 +11,8 @@ fn src(a: &[Vec<f32>; 3]) -> Src3<'_, f32> {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let usage = "kernel_profile <preset|material JSON> <eval|pdf|sample> [n] [iterations] [threads, default 1]";
+    let usage =
+        "kernel_profile <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1]";
     let spec = args.get(1).expect(usage);
     let m = if spec.trim_start().starts_with('{') { Material::from_json(spec) } else { Material::preset(spec) }
         .expect("a preset name or material JSON");
@@ -45,6 +46,7 @@ fn main() {
         match op {
             "eval" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), None)),
             "pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, None, Some(&Dst1::new(&mut pdf)))),
+            "eval_pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), Some(&Dst1::new(&mut pdf)))),
             "sample" => {
                 let [wx, wy, wz] = &mut w;
                 let mut s = SampleOut {

@@ -8,7 +8,7 @@
 //! energy-conserving when each lobe is.
 
 use super::coat::TransmissionBlur;
-use super::flakes::FlakeLayer;
+use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use crate::bxdf::BsdfSample;
 use crate::frame::half_vector_masked;
@@ -314,6 +314,14 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn pdf_parts<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: BaseParts) -> T {
+        self.pdf_parts_by(wi, wo, parts, FlakeSampler::Projected)
+    }
+
+    /// [`Basecoat::pdf_parts`] with the flakes sampled by `sampler` (the density of
+    /// [`Basecoat::sample_direction_parts_by`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_parts_by<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: BaseParts, sampler: FlakeSampler) -> T {
         let sel = self.selection_of(parts);
         let [a, b, c] = sel.map(T::c);
         if !(sel.iter().sum::<f64>() > 0.0) {
@@ -327,7 +335,7 @@ impl Basecoat {
                     p += b * m.pdf(wi, wo);
                 }
                 if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
-                    p += c * f.pdf(wi, wo);
+                    p += c * FlakeLayer::pdf_by(&f.microfacet::<T>(), wi, wo, sampler);
                 }
             }
             Some(blur) => {
@@ -336,7 +344,7 @@ impl Basecoat {
                     p += b * MetalBase::pdf_with(&m.blurred(added), wi, wo);
                 }
                 if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
-                    p += c * FlakeLayer::pdf_with(&f.blurred(added), wi, wo);
+                    p += c * FlakeLayer::pdf_by(&f.blurred(added), wi, wo, sampler);
                 }
             }
         }
@@ -370,6 +378,21 @@ impl Basecoat {
         active: T::Mask,
         parts: BaseParts,
     ) -> (Vec3<T>, T::Mask) {
+        self.sample_direction_parts_by(wo, u, active, parts, FlakeSampler::Projected)
+    }
+
+    /// [`Basecoat::sample_direction_parts`] with the flakes sampled by `sampler` (density
+    /// [`Basecoat::pdf_parts_by`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_direction_parts_by<T: Lanes>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        active: T::Mask,
+        parts: BaseParts,
+        sampler: FlakeSampler,
+    ) -> (Vec3<T>, T::Mask) {
         let pick = pick3(self.selection_of(parts).map(T::c), u[0]);
         // Each lobe's sampler runs only when an active lane chose it (one lane: only the
         // chosen one, so the scalar paths pay for one sampler, not three).
@@ -388,8 +411,8 @@ impl Basecoat {
         }
         if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
             let w = match added {
-                None => f.sample_direction_masked(wo, u[1], u[2], flake),
-                Some(a) => FlakeLayer::sample_direction_with(f.blurred(a), wo, u[1], u[2], flake),
+                None => FlakeLayer::sample_direction_by(f.microfacet::<T>(), wo, u[1], u[2], flake, sampler),
+                Some(a) => FlakeLayer::sample_direction_by(f.blurred(a), wo, u[1], u[2], flake, sampler),
             };
             wi = Vec3::select(flake, w, wi);
         }
@@ -399,10 +422,19 @@ impl Basecoat {
     /// A full sample of the basecoat alone (weight `f_b cos/pdf` with the mixture pdf).
     #[must_use]
     pub fn sample<T: Real>(&self, wo: Vec3<T>, u: [T; 3]) -> Option<BsdfSample<T>> {
-        let wi = self.sample_direction(wo, u)?;
-        if wi.z <= T::zero() {
+        self.sample_by(wo, u, FlakeSampler::Projected)
+    }
+
+    /// [`Basecoat::sample`] with the flakes sampled by `sampler` (the weight uses the matching
+    /// density [`Basecoat::pdf_parts_by`]). The layer-table builds use
+    /// [`FlakeSampler::Visible`]: lower-variance estimates than the render-time
+    /// [`FlakeSampler::Projected`] (docs/speed.md).
+    #[must_use]
+    pub fn sample_by<T: Real>(&self, wo: Vec3<T>, u: [T; 3], sampler: FlakeSampler) -> Option<BsdfSample<T>> {
+        let (wi, valid) = self.sample_direction_parts_by(wo, u, true, BaseParts::ALL, sampler);
+        if !valid || wi.z <= T::zero() {
             return None;
         }
-        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf(wi, wo))
+        BsdfSample::from_eval(wi, self.eval(wi, wo), self.pdf_parts_by(wi, wo, BaseParts::ALL, sampler))
     }
 }

@@ -80,8 +80,9 @@
 //! `u[0]` picks the top reflection, the single-scatter layer lobe or the cosine lobe in
 //! proportion to their albedos for this `wo` (`E_top(μo)`, `A1(μo)`, `M(μo) + ΔR(μo)`: the
 //! multiple-scatter lobe and the coat's multiple-scattering reflection, both cosine-sampled); the layer lobe
-//! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX and Beckmann visible
-//! normals) and refracts out. `sample_at` draws the same directions (the pdf does not depend
+//! refracts `wo` in, samples the basecoat's own mixture (cosine, GGX visible normals, the
+//! flakes' Beckmann `D(m) cos θm`; the layer tables are built with the flakes' visible
+//! normals instead, which give lower-variance estimates) and refracts out. `sample_at` draws the same directions (the pdf does not depend
 //! on the position) and weights them by `eval_at · cos / pdf`.
 //!
 //! ## References
@@ -92,7 +93,7 @@
 
 use super::basecoat::{BaseParts, Basecoat, MetalBase};
 use super::coat::Coat;
-use super::flakes::FlakeLayer;
+use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use super::sparkle::Sparkle;
 use super::thin_film::ThinFilm;
@@ -766,7 +767,7 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
     let mut rho_bar = [0.0; 3];
     for k in 0..n {
         let w = cosine_hemisphere(radical_inverse_base(5, k + 1), radical_inverse_base(7, k + 1));
-        if let Some(s) = base.sample(w, super::hammersley3(k, n)) {
+        if let Some(s) = base.sample_by(w, super::hammersley3(k, n), FlakeSampler::Visible) {
             for (c, r) in rho_bar.iter_mut().enumerate() {
                 *r += s.weight[c] / n as f64;
             }
@@ -776,6 +777,8 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
 }
 
 /// Builds `A1(μ)` and `M(μ)` (see the module docs) by stratified sampling of the basecoat.
+/// The flakes are sampled by their visible normals here ([`FlakeSampler::Visible`]: lower
+/// variance than the render-time closed form, see docs/speed.md).
 fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
     // Mean escape probability e, mean crossing transmittance τ̄ (cosine-distributed light
     // inside), and the basecoat's mean albedo ρ̄ for cosine-distributed incidence.
@@ -822,7 +825,7 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
         let a_w = coat.attenuation(w_in.z);
         let (mut up, mut out) = ([0.0; 3], [0.0; 3]);
         for u in &points {
-            let Some(s) = base.sample(w_in, *u) else { continue };
+            let Some(s) = base.sample_by(w_in, *u, FlakeSampler::Visible) else { continue };
             let a_v = coat.attenuation(s.wi.z);
             let esc = coat.refract_out(s.wi).map_or(0.0, |v| coat.transmittance(v.z));
             for c in 0..3 {

@@ -33,7 +33,7 @@
 use super::basecoat::{Basecoat, MetalBase};
 use super::coat::{Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
-use super::flakes::FlakeLayer;
+use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use crate::bxdf::LaneSample;
 use crate::frame::half_vector_masked;
@@ -1106,7 +1106,7 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
                 // The coats whose light this basecoat's samples carry.
                 let js = if specular { b..b + 1 } else { 0..na };
                 for u in &points {
-                    let Some(s) = bj.sample(w_in, *u) else { continue };
+                    let Some(s) = bj.sample_by(w_in, *u, FlakeSampler::Visible) else { continue };
                     let a_v = coat.attenuation(s.wi.z);
                     let exit = coat.refract_out(s.wi);
                     for j in js.clone() {
