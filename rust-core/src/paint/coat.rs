@@ -143,8 +143,9 @@ pub struct MultipleScattering {
 /// 2 · 10⁶ walks per direction, 12 × 6 equal-solid-angle bins): the walk sends 74–93 % of
 /// them into the 30° of azimuth around the mirror plane's forward side at θo 75° (a uniform
 /// azimuth gives 17 %); with `r` 0.95 and the square root the lobe-shape error of that
-/// reflection alone drops from 86–91 % (the separable lobe) to 17–21 % at θo 75°
-/// (`docs/paint-validation.md` §8).
+/// reflection alone drops from 86–91 % (the separable lobe) to 15–20 % at θo 75°
+/// (`docs/paint-validation.md` §8); `r` 0.95 rather than the scan's 0.96–0.98 keeps the
+/// factor's peak `(1 + r)/(1 − r)` at 39.
 pub const MS_FORWARD_CONCENTRATION: f64 = 0.95;
 
 /// The azimuthal factor of the coat's multiple-scattering reflection (issue 17 item 3): a
