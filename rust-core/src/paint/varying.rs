@@ -31,7 +31,7 @@
 //! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
 
 use super::basecoat::{Basecoat, MetalBase};
-use super::coat::{Coat, TransmissionBlur};
+use super::coat::{ms_azimuthal, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
@@ -699,8 +699,8 @@ impl VaryingPaint {
         let mf = Self::coat_microfacet(e);
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
         let f = fresnel::dielectric(wo.dot(h), L::c(self.coat.ior)) * mf.d(h) * g / (L::c(4.0) * wi.z * wo.z);
-        // The multiple-scattering reflection ΔR(μi) ΔR(μo)/(π ΔR̄) at the element's α.
-        let ms = self.ms_albedo(e, wi.z) * self.ms_albedo(e, wo.z) * e.ms_norm;
+        // The multiple-scattering reflection ΔR(μi) ΔR(μo) A(wi, wo)/(π ΔR̄) at the element's α.
+        let ms = self.ms_albedo(e, wi.z) * self.ms_albedo(e, wo.z) * e.ms_norm * ms_azimuthal(wi, wo);
         keep(defined & lanes::gt(g, L::c(0.0)), f) + ms
     }
 
