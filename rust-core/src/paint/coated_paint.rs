@@ -92,7 +92,7 @@
 //! `shared/seeds/004` (parameters and ranges, chapter 3).
 
 use super::basecoat::{BaseParts, Basecoat, MetalBase};
-use super::coat::Coat;
+use super::coat::{ms_pdf, ms_sample, Coat};
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use super::sparkle::Sparkle;
@@ -588,6 +588,12 @@ impl CoatedPaint {
         }
         if parts.pigment || parts.coat {
             p += s[2] * cosine_hemisphere_pdf(wi.z);
+            if parts.coat && self.coat.multiple_scattering().is_some() {
+                // The coat's multiple-scattering share `ΔR(μo)` of the cosine weight draws its
+                // azimuth from the lobe's wrapped Cauchy: density `A cos θi/π`, not `cos θi/π`.
+                let ms = self.coat.ms_albedo(wo.z);
+                p += ms * (ms_pdf(wi, wo) - cosine_hemisphere_pdf(wi.z));
+            }
         }
         keep(lanes::gt(total, T::c(0.0)), p / total)
     }
@@ -633,7 +639,23 @@ impl CoatedPaint {
         } else {
             (normal, T::Mask::splat(false))
         };
-        let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
+        let w_multiple = if multiple.any() {
+            let w = cosine_hemisphere(u[1], u[2]);
+            if parts.coat && self.coat.multiple_scattering().is_some() {
+                // The cosine weight's first `ΔR(μo)` is the coat's multiple-scattering
+                // reflection: its azimuth follows the lobe's wrapped Cauchy ([`ms_sample`]).
+                let coat_ms = multiple & lanes::lt(pick.u * selection[2], self.coat.ms_albedo(wo.z));
+                if coat_ms.any() {
+                    Vec3::select(coat_ms, ms_sample(wo, u[1], u[2]), w)
+                } else {
+                    w
+                }
+            } else {
+                w
+            }
+        } else {
+            normal
+        };
         let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
         let valid = pick.valid & (top | (layer & layer_ok) | multiple);
         let delta = if self.coat.is_smooth() { top } else { T::Mask::splat(false) };
@@ -1149,6 +1171,108 @@ mod tests {
                 let (a, b) = (coat.ms_eval(wi, wo), coat.ms_eval(wo, wi));
                 assert!((a - b).abs() <= 1e-15 * a, "{a} vs {b}");
             }
+        }
+    }
+
+    /// The coat's multiple-scattering reflection is sampled with its azimuth
+    /// ([`crate::paint::coat::ms_sample`]): χ² of 200 000 draws per `wo` against its density
+    /// [`crate::paint::coat::ms_pdf`] integrated over 8 × 24 cells (equal `sin² θi` bands ×
+    /// `Δφ`; 16 × 16 midpoint nodes per cell), at θo 0°/40°/75°/89°, with cells of expected
+    /// count < 5 pooled. Measured χ²/dof 0.86–1.16 (dof 191); asserted below
+    /// dof + 5√(2 dof), about 1.5 × dof. A sampler that drew a uniform azimuth (the cosine lobe)
+    /// gives χ²/dof > 100 at θo 75°. The density's integral is 1 (the same quadrature, asserted 1e-4).
+    #[test]
+    fn ms_sampler_draws_its_density() {
+        use crate::paint::coat::{ms_pdf, ms_sample};
+        use crate::rng::Pcg32;
+        use std::f64::consts::PI;
+        let (n_mu, n_phi, sub) = (8, 24, 16);
+        for (k, theta_o) in [0.0f64, 40.0, 75.0, 89.0].into_iter().enumerate() {
+            let t = theta_o.to_radians();
+            // wo at azimuth 0.7 rad, so the test also covers the rotation to wo's azimuth.
+            let wo = crate::frame::spherical_direction(t.sin(), t.cos(), 0.7);
+            let cell = |wi: Vec3<f64>| {
+                let s2 = (wi.x * wi.x + wi.y * wi.y).min(1.0 - 1e-15);
+                let dphi = (wi.y.atan2(wi.x) - 0.7).rem_euclid(2.0 * PI);
+                ((s2 * n_mu as f64) as usize).min(n_mu - 1) * n_phi
+                    + ((dphi / (2.0 * PI) * n_phi as f64) as usize).min(n_phi - 1)
+            };
+            // Expected probability per cell: sin² θ = s in the band, dω = dμ dφ = ds dφ/(2μ).
+            let mut expected = vec![0.0; n_mu * n_phi];
+            for (c, e) in expected.iter_mut().enumerate() {
+                let (i, j) = (c / n_phi, c % n_phi);
+                for a in 0..sub {
+                    for b in 0..sub {
+                        let s2 = (i as f64 + (a as f64 + 0.5) / sub as f64) / n_mu as f64;
+                        let phi = 0.7 + (j as f64 + (b as f64 + 0.5) / sub as f64) / n_phi as f64 * 2.0 * PI;
+                        let mu = (1.0 - s2).sqrt();
+                        let wi = crate::frame::spherical_direction(s2.sqrt(), mu, phi);
+                        let area = (1.0 / (n_mu * sub) as f64) * (2.0 * PI / (n_phi * sub) as f64) / (2.0 * mu);
+                        *e += ms_pdf(wi, wo) * area;
+                    }
+                }
+            }
+            let total: f64 = expected.iter().sum();
+            assert!((total - 1.0).abs() < 1e-4, "θo {theta_o}: ∫ pdf = {total}");
+            let draws = 200_000;
+            let mut counts = vec![0.0; n_mu * n_phi];
+            let mut rng = Pcg32::new(17, k as u64);
+            for _ in 0..draws {
+                let wi = ms_sample(wo, rng.uniform(), rng.uniform());
+                assert!(wi.z >= 0.0 && (wi.dot(wi) - 1.0).abs() < 1e-9, "{wi:?}");
+                counts[cell(wi)] += 1.0;
+            }
+            // Pool cells with expected count < 5 into one.
+            let (mut chi2, mut dof, mut pool_e, mut pool_o) = (0.0, 0usize, 0.0, 0.0);
+            for (e, o) in expected.iter().zip(&counts) {
+                let e = e * draws as f64;
+                if e < 5.0 {
+                    (pool_e, pool_o) = (pool_e + e, pool_o + o);
+                } else {
+                    chi2 += (o - e) * (o - e) / e;
+                    dof += 1;
+                }
+            }
+            if pool_e > 0.0 {
+                chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e.max(1.0);
+                dof += 1;
+            }
+            let dof = dof - 1;
+            let limit = dof as f64 + 5.0 * (2.0 * dof as f64).sqrt();
+            eprintln!("θo {theta_o}°: χ² {chi2:.1}, dof {dof}, χ²/dof {:.2}", chi2 / dof as f64);
+            assert!(chi2 < limit, "θo {theta_o}°: χ² {chi2:.1} ≥ {limit:.1} (dof {dof})");
+        }
+    }
+
+    /// The paint's sampling of its multiple-scattering coat reflection ([`crate::paint::coat::ms_sample`]):
+    /// a black pigment under a rough coat (α 0.3), where the cosine-sampled weight is nearly all
+    /// the coat's `ΔR`, so drawing `ΔR`'s forward azimuth matters most. Relative variance of the
+    /// sample weight (green) over 200 000 samples at θo 60° / 75°: measured 0.245 / 0.392 with
+    /// the wrapped-Cauchy azimuth, 0.287 / 0.447 with the cosine lobe alone (uniform azimuth; the
+    /// sampler before); asserted 0.265 / 0.42. (A mid-grey pigment, base 0.5, α 0.05–0.1, moves
+    /// the other way by 1–8 % at θo 75°–88°: the pigment's cosine lobe then dominates the weight.)
+    /// 0.1 s in release.
+    #[test]
+    fn rough_coat_ms_sampling_lowers_weight_variance_on_dark_paint() {
+        use crate::rng::Pcg32;
+        let p = paint(
+            r#"{"model": "coated_paint", "base_color": [0.0, 0.0, 0.0], "flake_density": 0, "coat_roughness": 0.3}"#,
+        );
+        for (theta_o, measured, limit) in [(60.0f64, 0.245, 0.265), (75.0, 0.392, 0.42)] {
+            let t = theta_o.to_radians();
+            let wo = Vec3::new(t.sin(), 0.0, t.cos());
+            let mut rng = Pcg32::new(5, 0);
+            let (mut sum, mut sum2, n) = (0.0, 0.0, 200_000);
+            for _ in 0..n {
+                if let Some(s) = p.sample(wo, rng.uniform3()) {
+                    sum += s.weight.g;
+                    sum2 += s.weight.g * s.weight.g;
+                }
+            }
+            let mean = sum / n as f64;
+            let rel_var = (sum2 / n as f64 - mean * mean) / (mean * mean);
+            eprintln!("θo {theta_o}°: albedo {mean:.4}, relative variance {rel_var:.4} (measured {measured})");
+            assert!(rel_var < limit, "θo {theta_o}°: relative variance {rel_var:.4} ≥ {limit}");
         }
     }
 

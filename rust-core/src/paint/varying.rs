@@ -31,7 +31,7 @@
 //! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
 
 use super::basecoat::{Basecoat, MetalBase};
-use super::coat::{ms_azimuthal, Coat, TransmissionBlur};
+use super::coat::{ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
@@ -485,7 +485,8 @@ impl VaryingPaint {
         s: [f64; 3],
     ) -> f64 {
         let e = self.element::<f64>(rho, coverage, alpha, Vary::ALL);
-        self.pdf_with(&e, wi, wo, s)
+        let ms = self.ms_albedo(&e, wo.z);
+        self.pdf_with(&e, wi, wo, s, ms)
     }
 
     /// `f` and pdf of one element (f64; tests).
@@ -863,7 +864,7 @@ impl VaryingPaint {
     pub(crate) fn eval_pdf_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
         let o = self.at_wo(e, wo);
         let f = self.eval_with(e, wi, wo, &o);
-        (f, self.pdf_with(e, wi, wo, self.selection(e, &o)))
+        (f, self.pdf_with(e, wi, wo, self.selection(e, &o), o.ms))
     }
 
     /// Lobe-selection weights for `wo`: top reflection, single-scatter layer, multiple scatter.
@@ -875,14 +876,26 @@ impl VaryingPaint {
         [o.reflectance, (a + b + c) / third, (d + f + g) / third + o.ms]
     }
 
+    /// Whether the coat has a multiple-scattering reflection (a rough or textured-α coat).
     #[inline(always)]
-    fn pdf_with<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, s: [L; 3]) -> L {
+    fn has_ms(&self) -> bool {
+        (self.varies_alpha() && self.coat.has_interface()) || self.coat.multiple_scattering().is_some()
+    }
+
+    /// The mixture density for the selection weights `s` at `wo`, whose cosine weight `s[2]`
+    /// holds the coat's multiple-scattering reflection `ms` = `ΔR(μo)` (as
+    /// `CoatedPaint::pdf_with`).
+    #[inline(always)]
+    fn pdf_with<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, s: [L; 3], ms: L) -> L {
         let total = s[0] + s[1] + s[2];
         let mut p = s[0] * self.top_pdf(e, wi, wo);
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let layer = s[1] * self.base_pdf(e, wi_in, wo_in) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
         p += keep(lanes::gt(s[1], L::c(0.0)), layer);
         p += s[2] * cosine_hemisphere_pdf(wi.z);
+        if self.has_ms() {
+            p += ms * (ms_pdf(wi, wo) - cosine_hemisphere_pdf(wi.z));
+        }
         keep(lanes::gt(total, L::c(0.0)), p / total)
     }
 
@@ -890,7 +903,7 @@ impl VaryingPaint {
     #[inline(always)]
     pub(crate) fn pdf_lanes<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> L {
         let o = self.at_wo(e, wo);
-        self.pdf_with(e, wi, wo, self.selection(e, &o))
+        self.pdf_with(e, wi, wo, self.selection(e, &o), o.ms)
     }
 
     /// A sample of the element (`wo` above the surface), as `CoatedPaint::sample_lanes`.
@@ -910,11 +923,21 @@ impl VaryingPaint {
         } else {
             (normal, L::Mask::splat(false))
         };
-        let w_multiple = if multiple.any() { cosine_hemisphere(u[1], u[2]) } else { normal };
+        let w_multiple = if multiple.any() {
+            let w = cosine_hemisphere(u[1], u[2]);
+            let coat_ms = multiple & lanes::lt(pick.u * selection[2], o.ms);
+            if self.has_ms() && coat_ms.any() {
+                Vec3::select(coat_ms, ms_sample(wo, u[1], u[2]), w)
+            } else {
+                w
+            }
+        } else {
+            normal
+        };
         let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
         let valid = pick.valid & (top | (layer & layer_ok) | multiple);
         let f = self.eval_with(e, wi, wo, &o);
-        let pdf = self.pdf_with(e, wi, wo, selection);
+        let pdf = self.pdf_with(e, wi, wo, selection, o.ms);
         let s = LaneSample::from_eval(wi, f, pdf, valid & lanes::gt(wi.z, L::c(0.0)));
         if !self.smooth() {
             return s;
