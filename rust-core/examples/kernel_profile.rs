@@ -77,12 +77,7 @@ fn main() {
             "pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, None, Some(&Dst1::new(&mut pdf)))),
             "eval_pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), Some(&Dst1::new(&mut pdf)))),
             "sample" => {
-                let mut s = SampleOut {
-                    wi: f,
-                    weight: dst(&mut w),
-                    pdf: Dst1::new(&mut pdf),
-                    flags: None,
-                };
+                let mut s = SampleOut { wi: f, weight: dst(&mut w), pdf: Dst1::new(&mut pdf), flags: None };
                 drop(batch::sample(&m, &src(&wo), &src(&uniform), None, &mut s));
             }
             _ => panic!("{usage}"),

@@ -494,7 +494,11 @@ fn layouts_give_identical_results() {
                 for (layout, got) in &results[1..] {
                     for i in 0..n {
                         let same = got[i].iter().zip(&want[i]).all(|(g, w)| g.to_bits() == w.to_bits());
-                        assert!(same, "{json} {level:?} n {n} {layout:?} element {i}: {:?} vs SoA {:?}", got[i], want[i]);
+                        assert!(
+                            same,
+                            "{json} {level:?} n {n} {layout:?} element {i}: {:?} vs SoA {:?}",
+                            got[i], want[i]
+                        );
                     }
                 }
             }
