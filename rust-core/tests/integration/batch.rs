@@ -466,14 +466,15 @@ fn layouts_give_identical_results() {
                         Some(&Dst1::new(&mut pdf)),
                     )
                     .unwrap();
-                    let mut out = SampleOut {
-                        wi: layout.dst(&mut swi, n),
-                        weight: layout.dst(&mut sw, n),
-                        pdf: Dst1::new(&mut spdf),
-                        flags: None,
-                    };
-                    batch::sample(&m, &layout.src(&b, n), &layout.src(&uu, n), Some(&active), &mut out).unwrap();
-                    drop(out);
+                    {
+                        let mut out = SampleOut {
+                            wi: layout.dst(&mut swi, n),
+                            weight: layout.dst(&mut sw, n),
+                            pdf: Dst1::new(&mut spdf),
+                            flags: None,
+                        };
+                        batch::sample(&m, &layout.src(&b, n), &layout.src(&uu, n), Some(&active), &mut out).unwrap();
+                    }
                     for (name, arr) in [("f", &f), ("sample wi", &swi), ("sample weight", &sw)] {
                         assert!(layout.untouched(arr, n), "{json} {level:?} n {n} {layout:?}: {name} wrote padding");
                     }
