@@ -1,18 +1,37 @@
 //! Profiling aid: runs one batch operation of one material in a loop, so `perf record` /
 //! `valgrind --tool=callgrind` see only that kernel.
 //!
-//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1]`
+//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz, default soa]`
+//!
+//! The last argument picks the array layout: `soa` (one array per component, what Dr.Jit hosts
+//! hold) or `xyz` (interleaved `x y z` per element, what `lq_eval` and C/C++ renderers pass).
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
 use lacquer::Material;
 
-fn src(a: &[Vec<f32>; 3]) -> Src3<'_, f32> {
-    Src3::soa(&a[0], &a[1], &a[2]).expect("equal lengths")
+/// Three component arrays, or one interleaved array (then `[xyz, [], []]`).
+type Arrays = [Vec<f32>; 3];
+
+fn src(a: &Arrays) -> Src3<'_, f32> {
+    if a[1].is_empty() {
+        Src3::interleaved(&a[0])
+    } else {
+        Src3::soa(&a[0], &a[1], &a[2]).expect("equal lengths")
+    }
+}
+
+fn dst(a: &mut Arrays) -> Dst3<'_, f32> {
+    let [x, y, z] = a;
+    if y.is_empty() {
+        Dst3::interleaved(x)
+    } else {
+        Dst3::soa(x, y, z).expect("equal lengths")
+    }
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let usage =
-        "kernel_profile <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1]";
+        "kernel_profile <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz]";
     let spec = args.get(1).expect(usage);
     let m = if spec.trim_start().starts_with('{') { Material::from_json(spec) } else { Material::preset(spec) }
         .expect("a preset name or material JSON");
@@ -32,29 +51,33 @@ fn main() {
         let phi = std::f32::consts::TAU * u2;
         [r * phi.cos(), r * phi.sin(), u1.max(1e-4)]
     };
-    let soa = |v: Vec<[f32; 3]>| -> [Vec<f32>; 3] { [0, 1, 2].map(|k| v.iter().map(|d| d[k]).collect()) };
+    let xyz = match args.get(6).map_or("soa", String::as_str) {
+        "soa" => false,
+        "xyz" => true,
+        _ => panic!("{usage}"),
+    };
+    let soa = |v: Vec<[f32; 3]>| -> Arrays {
+        if xyz {
+            [v.as_flattened().to_vec(), Vec::new(), Vec::new()]
+        } else {
+            [0, 1, 2].map(|k| v.iter().map(|d| d[k]).collect())
+        }
+    };
     let wi = soa((0..n).map(|_| dir()).collect());
     let wo = soa((0..n).map(|_| dir()).collect());
     let uniform = soa((0..n).map(|_| [next(), next(), next()]).collect());
-    let mut out = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
-    let mut w = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+    let zeros = || soa(vec![[0f32; 3]; n]);
+    let (mut out, mut w) = (zeros(), zeros());
     let mut pdf = vec![0f32; n];
     let (start, cpu_start) = (std::time::Instant::now(), thread_cpu_ns());
     for _ in 0..iterations {
-        let [ox, oy, oz] = &mut out;
-        let f = Dst3::soa(ox, oy, oz).expect("equal lengths");
+        let f = dst(&mut out);
         match op {
             "eval" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), None)),
             "pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, None, Some(&Dst1::new(&mut pdf)))),
             "eval_pdf" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), Some(&Dst1::new(&mut pdf)))),
             "sample" => {
-                let [wx, wy, wz] = &mut w;
-                let mut s = SampleOut {
-                    wi: f,
-                    weight: Dst3::soa(wx, wy, wz).expect("equal lengths"),
-                    pdf: Dst1::new(&mut pdf),
-                    flags: None,
-                };
+                let mut s = SampleOut { wi: f, weight: dst(&mut w), pdf: Dst1::new(&mut pdf), flags: None };
                 drop(batch::sample(&m, &src(&wo), &src(&uniform), None, &mut s));
             }
             _ => panic!("{usage}"),
@@ -67,9 +90,10 @@ fn main() {
         _ => String::new(),
     };
     println!(
-        "{op}: {wall:.2} ns/element wall{cpu} ({} lanes, {} threads)",
+        "{op}: {wall:.2} ns/element wall{cpu} ({} lanes, {} threads, {} layout)",
         batch::simd_level().name(),
-        batch::thread_count()
+        batch::thread_count(),
+        if xyz { "xyz" } else { "soa" }
     );
 }
 

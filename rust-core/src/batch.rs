@@ -296,6 +296,22 @@ impl<'a, E> Dst1<'a, E> {
     }
 }
 
+impl<E> Src3<'_, E> {
+    /// True for the interleaved layout `x0 y0 z0 x1 …` (stride 3, components adjacent).
+    #[inline(always)]
+    fn is_xyz(&self) -> bool {
+        self.stride == 3 && self.p[1] == self.p[0].wrapping_add(1) && self.p[2] == self.p[0].wrapping_add(2)
+    }
+}
+
+impl<E> Dst3<'_, E> {
+    /// True for the interleaved layout (as [`Src3::is_xyz`]).
+    #[inline(always)]
+    fn is_xyz(&self) -> bool {
+        self.stride == 3 && self.p[1] == self.p[0].wrapping_add(1) && self.p[2] == self.p[0].wrapping_add(2)
+    }
+}
+
 impl<E: Copy> Src3<'_, E> {
     /// Element `i`.
     ///
@@ -428,6 +444,24 @@ unsafe fn load_comp<L: Lanes>(p: *const L::Elem, stride: usize, start: usize, wi
 #[inline(always)]
 unsafe fn load3<L: Lanes>(s: &Src3<L::Elem>, start: usize, width: usize, pad: [f64; 3]) -> Vec3<L> {
     let of = <L::Elem as Real>::of;
+    if s.is_xyz() {
+        // Interleaved `x y z`: contiguous loads deinterleaved in registers (a short tail
+        // through a padded copy) rather than a gather per component.
+        // SAFETY: the caller guarantees start + width ≤ n: values 3·start … 3·(start + width)
+        // exist.
+        let p = unsafe { s.p[0].add(3 * start) };
+        let [x, y, z] = if width == L::WIDTH {
+            unsafe { L::load_xyz_ptr(p) }
+        } else {
+            let mut buf = [of(0.0); 48];
+            for (j, b) in buf.iter_mut().enumerate().take(3 * L::WIDTH) {
+                *b = if j < 3 * width { unsafe { *p.add(j) } } else { of(pad[j % 3]) };
+            }
+            // SAFETY: 3·WIDTH ≤ 48 values in the buffer.
+            unsafe { L::load_xyz_ptr(buf.as_ptr()) }
+        };
+        return Vec3::new(x, y, z);
+    }
     // SAFETY: the caller guarantees start + width ≤ n.
     unsafe {
         Vec3::new(
@@ -441,6 +475,22 @@ unsafe fn load3<L: Lanes>(s: &Src3<L::Elem>, start: usize, width: usize, pad: [f
 /// Stores lanes `start..start + width` into a 3-component view.
 #[inline(always)]
 unsafe fn store3<L: Lanes>(d: &Dst3<L::Elem>, start: usize, width: usize, v: [L; 3]) {
+    if d.is_xyz() {
+        // Interleaved: permuted in registers, contiguous stores (a short tail through a copy).
+        // SAFETY: as in load3.
+        let p = unsafe { d.p[0].add(3 * start) };
+        if width == L::WIDTH {
+            unsafe { L::store_xyz_ptr(v, p) };
+        } else {
+            let mut buf = [<L::Elem as Real>::of(0.0); 48];
+            // SAFETY: 3·WIDTH ≤ 48 values in the buffer; 3·width values at p are writable.
+            unsafe {
+                L::store_xyz_ptr(v, buf.as_mut_ptr());
+                std::ptr::copy_nonoverlapping(buf.as_ptr(), p, 3 * width);
+            }
+        }
+        return;
+    }
     // SAFETY: as in load3.
     unsafe {
         store_comp(d.p[0], d.stride, start, width, v[0]);

@@ -99,6 +99,31 @@ pub trait Lanes:
     /// # Safety
     /// `p` points to `WIDTH` writable values.
     unsafe fn store_ptr(self, p: *mut Self::Elem);
+    /// Loads `WIDTH` interleaved 3-vectors (`3·WIDTH` consecutive values `x0 y0 z0 x1 …`)
+    /// as their three components. SIMD lanes load three contiguous registers and
+    /// deinterleave them with permutes; the default reads lane by lane.
+    ///
+    /// # Safety
+    /// `p` points to `3·WIDTH` readable values.
+    #[inline(always)]
+    unsafe fn load_xyz_ptr(p: *const Self::Elem) -> [Self; 3] {
+        // SAFETY: the caller guarantees 3·WIDTH readable values.
+        [0, 1, 2].map(|k| Self::from_fn(|i| unsafe { *p.add(3 * i + k) }))
+    }
+    /// Stores three components as `WIDTH` interleaved 3-vectors (`3·WIDTH` consecutive values),
+    /// the inverse of [`Lanes::load_xyz_ptr`].
+    ///
+    /// # Safety
+    /// `p` points to `3·WIDTH` writable values.
+    #[inline(always)]
+    unsafe fn store_xyz_ptr(v: [Self; 3], p: *mut Self::Elem) {
+        for i in 0..Self::WIDTH {
+            for (k, c) in v.iter().enumerate() {
+                // SAFETY: the caller guarantees 3·WIDTH writable values.
+                unsafe { *p.add(3 * i + k) = c.lane(i) };
+            }
+        }
+    }
     /// Square root (exact, correctly rounded).
     fn sqrt_(self) -> Self;
     /// Absolute value.

@@ -270,6 +270,35 @@ impl Lanes for F32x8 {
         unsafe { _mm256_storeu_ps(p, self.0) }
     }
     #[inline(always)]
+    unsafe fn load_xyz_ptr(p: *const f32) -> [Self; 3] {
+        // Three loads a = x0 y0 z0 x1 y1 z1 x2 y2, b = z2 x3 … x5, c = y5 z5 … z7; two blends
+        // put each component's eight values in one register (in a fixed order), one permute
+        // sorts them.
+        unsafe {
+            let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
+            let x = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(a, b), c);
+            let y = _mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(a, b), c);
+            let z = _mm256_blend_ps::<0x92>(_mm256_blend_ps::<0x49>(a, b), c);
+            [
+                Self(_mm256_permutevar8x32_ps(x, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5))),
+                Self(_mm256_permutevar8x32_ps(y, _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6))),
+                Self(_mm256_permutevar8x32_ps(z, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7))),
+            ]
+        }
+    }
+    #[inline(always)]
+    unsafe fn store_xyz_ptr(v: [Self; 3], p: *mut f32) {
+        // The inverse of `load_xyz_ptr`: permute each component into its blend order, blend.
+        unsafe {
+            let x = _mm256_permutevar8x32_ps(v[0].0, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+            let y = _mm256_permutevar8x32_ps(v[1].0, _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2));
+            let z = _mm256_permutevar8x32_ps(v[2].0, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+            _mm256_storeu_ps(p, _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(x, y), z));
+            _mm256_storeu_ps(p.add(8), _mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(x, y), z));
+            _mm256_storeu_ps(p.add(16), _mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x92>(x, z), y));
+        }
+    }
+    #[inline(always)]
     fn sqrt_(self) -> Self {
         Self(unsafe { _mm256_sqrt_ps(self.0) })
     }
@@ -413,6 +442,40 @@ impl Lanes for F32x16 {
         unsafe { _mm512_storeu_ps(p, self.0) }
     }
     #[inline(always)]
+    unsafe fn load_xyz_ptr(p: *const f32) -> [Self; 3] {
+        // Three loads (48 values); per component one two-source permute takes its values
+        // from the first two registers, a second one the rest from the third. (Measured
+        // faster here than the AVX2 scheme of two masked blends and one permute: 0.48 vs
+        // 0.60 ns per lambert eval.) No closures: they would not inherit the kernel's target
+        // features, and the intrinsics in them would become calls.
+        unsafe {
+            let (a, b, c) = (_mm512_loadu_ps(p), _mm512_loadu_ps(p.add(16)), _mm512_loadu_ps(p.add(32)));
+            let t = &DEINTERLEAVE;
+            let x = _mm512_permutex2var_ps(a, _mm512_loadu_epi32(t[0][0].as_ptr()), b);
+            let y = _mm512_permutex2var_ps(a, _mm512_loadu_epi32(t[1][0].as_ptr()), b);
+            let z = _mm512_permutex2var_ps(a, _mm512_loadu_epi32(t[2][0].as_ptr()), b);
+            [
+                Self(_mm512_permutex2var_ps(x, _mm512_loadu_epi32(t[0][1].as_ptr()), c)),
+                Self(_mm512_permutex2var_ps(y, _mm512_loadu_epi32(t[1][1].as_ptr()), c)),
+                Self(_mm512_permutex2var_ps(z, _mm512_loadu_epi32(t[2][1].as_ptr()), c)),
+            ]
+        }
+    }
+    #[inline(always)]
+    unsafe fn store_xyz_ptr(v: [Self; 3], p: *mut f32) {
+        // Per output register: x and y values by one two-source permute, z by a second.
+        unsafe {
+            let t = &INTERLEAVE;
+            let [x, y, z] = [v[0].0, v[1].0, v[2].0];
+            let a = _mm512_permutex2var_ps(x, _mm512_loadu_epi32(t[0][0].as_ptr()), y);
+            let b = _mm512_permutex2var_ps(x, _mm512_loadu_epi32(t[1][0].as_ptr()), y);
+            let c = _mm512_permutex2var_ps(x, _mm512_loadu_epi32(t[2][0].as_ptr()), y);
+            _mm512_storeu_ps(p, _mm512_permutex2var_ps(a, _mm512_loadu_epi32(t[0][1].as_ptr()), z));
+            _mm512_storeu_ps(p.add(16), _mm512_permutex2var_ps(b, _mm512_loadu_epi32(t[1][1].as_ptr()), z));
+            _mm512_storeu_ps(p.add(32), _mm512_permutex2var_ps(c, _mm512_loadu_epi32(t[2][1].as_ptr()), z));
+        }
+    }
+    #[inline(always)]
     fn sqrt_(self) -> Self {
         Self(unsafe { _mm512_sqrt_ps(self.0) })
     }
@@ -531,10 +594,94 @@ impl Lanes for F32x16 {
     }
 }
 
+/// `_mm512_permutex2var_ps` indices that deinterleave 16 3-vectors held in three registers
+/// `a b c` (48 values): component `k` is `perm(perm(a, [k][0], b), [k][1], c)`.
+const DEINTERLEAVE: [[[i32; 16]; 2]; 3] = {
+    let mut t = [[[0i32; 16]; 2]; 3];
+    let mut k = 0;
+    while k < 3 {
+        let mut j = 0;
+        while j < 16 {
+            let pos = 3 * j + k; // where element j's component k sits in a b c
+            if pos < 32 {
+                t[k][0][j] = pos as i32;
+                t[k][1][j] = j as i32;
+            } else {
+                t[k][1][j] = (16 + pos - 32) as i32;
+            }
+            j += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
+/// The inverse of [`DEINTERLEAVE`]: output register `q` (values `16q … 16q + 15` of the
+/// interleaved array) is `perm(perm(x, [q][0], y), [q][1], z)`.
+const INTERLEAVE: [[[i32; 16]; 2]; 3] = {
+    let mut t = [[[0i32; 16]; 2]; 3];
+    let mut q = 0;
+    while q < 3 {
+        let mut j = 0;
+        while j < 16 {
+            let pos = 16 * q + j;
+            let (comp, elem) = (pos % 3, (pos / 3) as i32);
+            match comp {
+                0 => t[q][0][j] = elem,
+                1 => t[q][0][j] = 16 + elem,
+                _ => {}
+            }
+            t[q][1][j] = if comp == 2 { 16 + elem } else { j as i32 };
+            j += 1;
+        }
+        q += 1;
+    }
+    t
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::batch::SimdLevel;
+
+    /// The interleaved loads and stores against the lane-by-lane definition: every
+    /// component of every element lands in its lane, and storing gives the array back.
+    #[test]
+    fn interleaved_load_store_round_trip() {
+        fn check<L: Lanes<Elem = f32>>() {
+            let w = L::WIDTH;
+            let src: Vec<f32> = (0..3 * w).map(|i| i as f32 * 1.5 - 7.0).collect();
+            // SAFETY: src holds 3·WIDTH values.
+            let v = unsafe { L::load_xyz_ptr(src.as_ptr()) };
+            for (k, c) in v.iter().enumerate() {
+                for i in 0..w {
+                    assert_eq!(c.lane(i), src[3 * i + k], "component {k}, lane {i} of {w}");
+                }
+            }
+            let mut dst = vec![f32::NAN; 3 * w + 1];
+            // SAFETY: dst holds more than 3·WIDTH values.
+            unsafe { L::store_xyz_ptr(v, dst.as_mut_ptr()) };
+            assert_eq!(dst[..3 * w], src[..], "width {w}");
+            assert!(dst[3 * w].is_nan(), "wrote past 3·WIDTH");
+        }
+        #[target_feature(enable = "avx2,fma")]
+        fn avx2() {
+            check::<F32x8>();
+        }
+        #[target_feature(enable = "avx512f")]
+        fn avx512() {
+            check::<F32x16>();
+        }
+        check::<f32>();
+        if SimdLevel::Avx2.supported() {
+            // SAFETY: the CPU has AVX2 and FMA (checked above).
+            unsafe { avx2() };
+        }
+        if SimdLevel::Avx512.supported() {
+            // SAFETY: the CPU has AVX-512F (checked above).
+            unsafe { avx512() };
+        }
+    }
 
     /// Largest error of the lane `exp` and `sin`/`cos` polynomials against f64 `std`, in every
     /// SIMD type this CPU has. Measured: exp ≤ 1.9 ulp relative (bounds: 2 ulp = 2.4e-7);
