@@ -96,6 +96,7 @@ use super::coat::Coat;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use super::sparkle::Sparkle;
+use super::spec_series::{series_lobe, SpecSeries};
 use super::thin_film::ThinFilm;
 use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
 use crate::error::Error;
@@ -259,6 +260,9 @@ pub struct CoatedPaint {
     multiple: MuTable,
     /// `1/(π M̄)` per channel (0 where `M̄ = 0`).
     multiple_norm: [f64; 3],
+    /// The metallic base's specular bounce series (None without a metallic base or without a
+    /// coat interface; [`super::spec_series`]).
+    spec: Option<SpecSeries>,
     /// Physical parameters kept for the sparkle layer and reports.
     pub flake_size_um: f64,
     /// Pearlescent flake diameter.
@@ -365,7 +369,8 @@ impl CoatedPaint {
             base
         };
         let base = base.with_blur(coat.transmission_blur());
-        let (single, multiple) = layer_tables(&coat, &base);
+        let spec = base.metal.as_ref().and_then(|m| SpecSeries::build(&coat, m.alpha));
+        let (single, multiple) = layer_tables(&coat, &base, spec.is_some());
         let m_avg = multiple.cosine_average();
         let multiple_norm = m_avg.map(|m| if m > 1e-12 { 1.0 / (std::f64::consts::PI * m) } else { 0.0 });
         Self {
@@ -374,6 +379,7 @@ impl CoatedPaint {
             single,
             multiple,
             multiple_norm,
+            spec,
             flake_size_um: p.scalar("flake_size_um"),
             pearl_size_um: p.scalar("pearl_size_um"),
             surface_scale_mm: p.scalar("surface_scale_mm"),
@@ -492,7 +498,8 @@ impl CoatedPaint {
         let [a, b, c] = self.single.eval_lanes(mu_o);
         let [d, e, f] = self.multiple.eval_lanes(mu_o);
         let third = T::c(3.0);
-        [self.coat.reflectance(mu_o), (a + b + c) / third, (d + e + f) / third + self.coat.ms_albedo(mu_o)]
+        let layer = (a + b + c) / third + self.spec_albedo(mu_o);
+        [self.coat.reflectance(mu_o), layer, (d + e + f) / third + self.coat.ms_albedo(mu_o)]
     }
 
     /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
@@ -510,12 +517,47 @@ impl CoatedPaint {
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / T::c(self.coat.ior * self.coat.ior);
-        let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base()) * scale;
+        let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base());
+        if parts.glossy {
+            if let Some(spec) = &self.spec {
+                f += self.spec_term(spec, wi, wo, wi_in, wo_in);
+            }
+        }
+        let mut f = f * scale;
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
         }
         Rgb::select(crosses, f, Rgb::zero())
+    }
+
+    /// The metallic base's bounce series inside the coat ([`super::spec_series`]; the
+    /// caller applies the coat's transmittances, as for the single-scatter term).
+    #[inline(always)]
+    fn spec_term<T: Lanes>(&self, spec: &SpecSeries, wi: Vec3<T>, wo: Vec3<T>, wi_in: Vec3<T>, wo_in: Vec3<T>) -> Rgb<T> {
+        let Some(m) = &self.base.metal else { return Rgb::zero() };
+        let (a, b) = (spec.weights.eval_lanes(wi.z), spec.weights.eval_lanes(wo.z));
+        let w = (lanes::safe_sqrt(a[0] * b[0]), lanes::safe_sqrt(a[1] * b[1]));
+        let n_eff = (a[2] + b[2]) * T::c(0.5);
+        let extra = T::c(spec.extra);
+        let added = match &self.base.blur {
+            None => (extra, extra),
+            Some(bl) => (bl.one_sided(wi_in.z) + extra, bl.one_sided(wo_in.z) + extra),
+        };
+        series_lobe(m, Rgb::from_array(m.f0), T::c(m.weight), added, wi_in, wo_in, w, Some(n_eff))
+    }
+
+    /// The bounce series' albedo at `μo` (0 without it), the channels' mean.
+    #[inline(always)]
+    fn spec_albedo<T: Lanes>(&self, mu_o: T) -> T {
+        match (&self.spec, &self.base.metal) {
+            (Some(spec), Some(m)) => {
+                let [s1, s0, _] = spec.albedo.eval_lanes(mu_o);
+                let f0 = (m.f0[0] + m.f0[1] + m.f0[2]) / 3.0;
+                T::c(m.weight) * (T::c(f0) * s1 + T::c(1.0 - f0) * s0)
+            }
+            _ => T::c(0.0),
+        }
     }
 
     /// The multiple-scatter lobe `M(μi) M(μo) / (π M̄)`.
@@ -779,7 +821,12 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
 /// Builds `A1(μ)` and `M(μ)` (see the module docs) by stratified sampling of the basecoat.
 /// The flakes are sampled by their visible normals here ([`FlakeSampler::Visible`]: lower
 /// variance than the render-time closed form, see docs/speed.md).
-fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
+///
+/// With `spec_series` (a metallic base, [`super::spec_series`]) the metal's share of what
+/// the coat reflects back down, `R_spec`, leaves through the bounce series instead: `M` keeps
+/// `bounce · (R − R_spec)`, split per sample by the metal lobe's share `f_metal/f_b` of the
+/// basecoat's value (non-negative by construction).
+fn layer_tables(coat: &Coat, base: &Basecoat, spec_series: bool) -> (MuTable, MuTable) {
     // Mean escape probability e, mean crossing transmittance τ̄ (cosine-distributed light
     // inside), and the basecoat's mean albedo ρ̄ for cosine-distributed incidence.
     let quad = 512;
@@ -823,22 +870,35 @@ fn layer_tables(coat: &Coat, base: &Basecoat) -> (MuTable, MuTable) {
         let t_w = coat.transmittance(mu);
         let w_in = coat.refract_in(w);
         let a_w = coat.attenuation(w_in.z);
-        let (mut up, mut out) = ([0.0; 3], [0.0; 3]);
+        let (mut up, mut out, mut rest) = ([0.0; 3], [0.0; 3], [0.0; 3]);
         for u in &points {
             let Some(s) = base.sample_by(w_in, *u, FlakeSampler::Visible) else { continue };
             let a_v = coat.attenuation(s.wi.z);
             let esc = coat.refract_out(s.wi).map_or(0.0, |v| coat.transmittance(v.z));
+            // The metal lobe's share of this sample (per channel, in [0, 1]).
+            let share = if spec_series {
+                let (fm, fb) = (base.metal_eval(s.wi, w_in), base.eval(s.wi, w_in));
+                [0, 1, 2].map(|c| if fb[c] > 0.0 { (fm[c] / fb[c]).clamp(0.0, 1.0) } else { 0.0 })
+            } else {
+                [0.0; 3]
+            };
             for c in 0..3 {
                 let e = s.weight[c] * a_v[c];
                 up[c] += e;
                 out[c] += e * esc;
+                rest[c] += e * (1.0 - esc) * (1.0 - share[c]);
             }
         }
         let norm = n as f64;
         let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * out[c] / norm);
         let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
         single.push(a1);
-        multiple.push([0, 1, 2].map(|c| (bounce[c] * (u[c] - a1[c])).max(0.0)));
+        multiple.push(if spec_series {
+            // What the pigment and the flakes send back down, `R − R_spec` (each term ≥ 0).
+            [0, 1, 2].map(|c| bounce[c] * t_w * a_w[c] * rest[c] / norm)
+        } else {
+            [0, 1, 2].map(|c| (bounce[c] * (u[c] - a1[c])).max(0.0))
+        });
     }
     (MuTable::from_values(single), MuTable::from_values(multiple))
 }
