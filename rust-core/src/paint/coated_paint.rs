@@ -542,7 +542,14 @@ impl CoatedPaint {
     /// The metallic base's bounce series inside the coat ([`super::spec_series`]; the
     /// caller applies the coat's transmittances, as for the single-scatter term).
     #[inline(always)]
-    fn spec_term<T: Lanes>(&self, spec: &SpecSeries, wi: Vec3<T>, wo: Vec3<T>, wi_in: Vec3<T>, wo_in: Vec3<T>) -> Rgb<T> {
+    fn spec_term<T: Lanes>(
+        &self,
+        spec: &SpecSeries,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        wi_in: Vec3<T>,
+        wo_in: Vec3<T>,
+    ) -> Rgb<T> {
         let Some(m) = &self.base.metal else { return Rgb::zero() };
         let (a, b) = (spec.weights.eval_lanes(wi.z), spec.weights.eval_lanes(wo.z));
         let w = (lanes::safe_sqrt(a[0] * b[0]), lanes::safe_sqrt(a[1] * b[1]));
@@ -1215,7 +1222,8 @@ mod tests {
         // Reciprocity of the whole paint (the series included).
         let mut rng = crate::rng::Pcg32::new(0x5e8, 1);
         for _ in 0..200 {
-            let (wi, wo) = (cosine_hemisphere(rng.uniform(), rng.uniform()), cosine_hemisphere(rng.uniform(), rng.uniform()));
+            let (wi, wo) =
+                (cosine_hemisphere(rng.uniform(), rng.uniform()), cosine_hemisphere(rng.uniform(), rng.uniform()));
             let (f, g) = (p.eval(wi, wo), p.eval(wo, wi));
             for c in 0..3 {
                 assert!((f[c] - g[c]).abs() <= 1e-12 * f[c].abs().max(1e-300), "{f:?} vs {g:?}");

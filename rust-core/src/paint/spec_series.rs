@@ -48,9 +48,9 @@ use super::coat::Coat;
 use super::flakes::FlakeSampler;
 use crate::frame::half_vector_masked;
 use crate::lanes::{self, keep, Lanes};
-use crate::rng::Pcg32;
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::MaskingKind;
+use crate::rng::Pcg32;
 use crate::sampling::hammersley3;
 use crate::table::MuTable;
 
@@ -188,8 +188,7 @@ impl SpecSeries {
             // Unit weights first (w = R/A), then w ← w (R/S)²: the pair weight √(w(μi) w(μo))
             // moves the albedo at μo about as √w(μo).
             let a = albedo_with(&vec![1.0; NODES]);
-            let mut w: Vec<f64> =
-                r.iter().zip(&a).map(|(&r, &a)| if a > 1e-12 { r / a } else { 0.0 }).collect();
+            let mut w: Vec<f64> = r.iter().zip(&a).map(|(&r, &a)| if a > 1e-12 { r / a } else { 0.0 }).collect();
             for _ in 0..ROUNDS {
                 let s = albedo_with(&w);
                 for k in 0..NODES {

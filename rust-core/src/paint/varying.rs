@@ -901,7 +901,8 @@ impl VaryingPaint {
         let (mi, mo) = (mu_at(wi.z, NODES), mu_at(wo.z, NODES));
         let pair = |t: &Flat| lanes::safe_sqrt(self.lookup(t, NODES, &e.at, &mi) * self.lookup(t, NODES, &e.at, &mo));
         let w = (pair(&spec.weights[0]), pair(&spec.weights[1]));
-        let n_eff = (self.lookup(&spec.weights[2], NODES, &e.at, &mi) + self.lookup(&spec.weights[2], NODES, &e.at, &mo))
+        let n_eff = (self.lookup(&spec.weights[2], NODES, &e.at, &mi)
+            + self.lookup(&spec.weights[2], NODES, &e.at, &mo))
             * L::c(0.5);
         let extra = L::c(spec.metal_alpha2) + e.alpha * e.alpha;
         let added = match (self.blur_one_sided(e, wi_in.z), self.blur_one_sided(e, wo_in.z)) {
