@@ -5,7 +5,8 @@
 //! `rough_coat_validation` markers) and the curves as `lacquer plot data` input to
 //! `docs/data/rough-coat-validation-*.json`.
 //!
-//! `cargo run --release -p lacquer --example rough_coat_validation [-- --walks N] [--no-write]`
+//! `cargo run --release -p lacquer --example rough_coat_validation [-- --walks N] [--no-write] [--only TEXT]`
+//! (`--only TEXT`: the bases whose name contains TEXT, nothing written; for iterating)
 //!
 //! Per configuration (coat α × base × view angle θo): the reflected lobe `f(wi, wo) cos θi`
 //! binned over 12 × 6 cells of equal solid angle (cos θi × folded azimuth difference), by
