@@ -5,7 +5,8 @@
 //! `rough_coat_validation` markers) and the curves as `lacquer plot data` input to
 //! `docs/data/rough-coat-validation-*.json`.
 //!
-//! `cargo run --release -p lacquer --example rough_coat_validation [-- --walks N] [--no-write]`
+//! `cargo run --release -p lacquer --example rough_coat_validation [-- --walks N] [--no-write] [--only TEXT]`
+//! (`--only TEXT`: the bases whose name contains TEXT, nothing written; for iterating)
 //!
 //! Per configuration (coat α × base × view angle θo): the reflected lobe `f(wi, wo) cos θi`
 //! binned over 12 × 6 cells of equal solid angle (cos θi × folded azimuth difference), by
@@ -132,11 +133,13 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok())
         .unwrap_or(200_000usize);
-    let write = !args.iter().any(|a| a == "--no-write");
+    // `--only TEXT`: the bases whose name contains TEXT (implies --no-write; for iterating).
+    let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
+    let write = !args.iter().any(|a| a == "--no-write") && only.is_none();
     let start = Instant::now();
     let mut table = String::new();
     let mut curves: Vec<(String, Curve, Curve, Curve)> = Vec::new();
-    for (base_name, base_json) in BASES {
+    for (base_name, base_json) in BASES.iter().filter(|(n, _)| only.as_ref().is_none_or(|o| n.contains(o.as_str()))) {
         let (mut alb, mut lobe, mut body) = (Vec::new(), Vec::new(), Vec::new());
         for &alpha in &ALPHAS {
             let json = format!(r#"{{"model": "coated_paint", "coat_roughness": {alpha}, {base_json}}}"#);

@@ -246,21 +246,17 @@ impl Basecoat {
         if !parts.glossy {
             return f;
         }
+        if self.metal.is_some() {
+            f += self.metal_eval(wi, wo);
+        }
         match &self.blur {
             None => {
-                if let Some(m) = &self.metal {
-                    f += m.eval(wi, wo);
-                }
                 if let Some(fl) = &self.flakes {
                     f += fl.eval_scaled(wi, wo, metal_scale, pearl_scale);
                 }
             }
             Some(b) => {
                 let (at_i, at_o) = (b.one_sided(wi.z), b.one_sided(wo.z));
-                if let Some(m) = &self.metal {
-                    let (a, o) = (m.blurred(at_i), m.blurred(at_o));
-                    f += m.eval_with(&o, Some(&a), Rgb::from_array(m.f0), T::c(m.weight), wi, wo);
-                }
                 if let Some(fl) = &self.flakes {
                     let (a, o) = (fl.blurred(at_i), fl.blurred(at_o));
                     f += fl.eval_scaled_with(&o, Some(&a), wi, wo, metal_scale, pearl_scale);
@@ -268,6 +264,20 @@ impl Basecoat {
             }
         }
         f
+    }
+
+    /// The metallic base's lobe alone (0 without one), blurred as in [`Basecoat::eval_parts`].
+    #[inline(always)]
+    #[must_use]
+    pub fn metal_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        let Some(m) = &self.metal else { return Rgb::zero() };
+        match &self.blur {
+            None => m.eval(wi, wo),
+            Some(b) => {
+                let (a, o) = (m.blurred(b.one_sided(wi.z)), m.blurred(b.one_sided(wo.z)));
+                m.eval_with(&o, Some(&a), Rgb::from_array(m.f0), T::c(m.weight), wi, wo)
+            }
+        }
     }
 
     /// The lobe-selection weights `[pigment, metal, flakes]` restricted to `parts` (the

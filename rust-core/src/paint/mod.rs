@@ -10,6 +10,7 @@ mod lobe_tests;
 pub mod position_free_mc;
 pub mod rough_dielectric;
 pub mod sparkle;
+pub mod spec_series;
 pub mod thin_film;
 pub mod varying;
 

@@ -35,6 +35,7 @@ use super::coat::{ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
+use super::spec_series::{series_lobe, SpecSeries};
 use crate::bxdf::LaneSample;
 use crate::frame::half_vector_masked;
 use crate::fresnel;
@@ -322,6 +323,21 @@ pub struct VaryingPaint {
     /// The coat's index when its rough transmission blurs the base's specular lobes (as
     /// [`Coat::transmission_blur`], with the element's α): None for a smooth coat or `η = 1`.
     blur_ior: Option<f64>,
+    /// The metal base's bounce series per α node ([`SpecSeries`] of each node's coat: `[w₁,
+    /// w₀, n]` and the albedos `[S₁, S₀]`, `NODES` values each): None without a metal base
+    /// or a coat interface.
+    spec: Option<SpecTables>,
+}
+
+/// [`SpecSeries`] tables per α node, flat (α node major).
+#[derive(Clone, Debug)]
+struct SpecTables {
+    /// `w₁`, `w₀`, `n`.
+    weights: [Flat; 3],
+    /// `S₁`, `S₀` per unit metal weight.
+    albedo: [Flat; 2],
+    /// The metal's `α_b²` (the series adds `α_b² + α²` with the element's coat α).
+    metal_alpha2: f64,
 }
 
 impl VaryingPaint {
@@ -375,9 +391,38 @@ impl VaryingPaint {
         }
         let na = coats.len();
         let (escape, tau) = escape_and_tau(&coats);
+        // The metal base's bounce series per α node (the material's own, `SpecSeries::build`).
+        let series: Option<Vec<SpecSeries>> = if metallic > 0.0 && coat.has_interface() {
+            coats.par_iter().map(|c| SpecSeries::build(c, metal_alpha)).collect()
+        } else {
+            None
+        };
         // Per component: A1 and U − A1 per (α node, channel) as NODES values, their cosine
         // averages, and ρ̄.
-        let per_comp: Vec<ComponentTables> = comps.iter().map(|(_, b)| component_tables(&coats, b)).collect();
+        let per_comp: Vec<ComponentTables> = comps
+            .iter()
+            .map(|(kind, b)| {
+                let mut t = component_tables(&coats, b);
+                if series.is_some() && matches!(kind, Kind::MetalOne | Kind::MetalZero) {
+                    // What the metal sends back down leaves through the bounce series, not
+                    // the multiple-scatter lobe (`coated_paint::layer_tables`: for a
+                    // metal-only component `R − R_spec` is 0).
+                    t.r = std::array::from_fn(|_| vec![0.0; na * NODES]);
+                    t.r_avg = std::array::from_fn(|_| vec![0.0; na]);
+                }
+                t
+            })
+            .collect();
+        let spec = series.map(|series| {
+            let col = |f: &dyn Fn(&SpecSeries) -> &MuTable, c: usize| {
+                Flat::new(series.iter().flat_map(|s| f(s).values().iter().map(move |v| v[c])).collect())
+            };
+            SpecTables {
+                weights: [0, 1, 2].map(|c| col(&|s| &s.weights, c)),
+                albedo: [0, 1].map(|c| col(&|s| &s.albedo, c)),
+                metal_alpha2: metal_alpha * metal_alpha,
+            }
+        });
         // The basis tables T_b = Σ_k coef_b(k) T_k.
         let u0 = 1.0 - pearl_c;
         let basis: Vec<ComponentTables> = Coef::ALL
@@ -436,6 +481,7 @@ impl VaryingPaint {
             material_c,
             material_alpha: paint.coat().roughness,
             blur_ior,
+            spec,
         }
     }
 
@@ -827,12 +873,54 @@ impl VaryingPaint {
         let crosses = lanes::gt(ti, L::c(0.0)) & lanes::gt(to, L::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / L::c(self.coat.ior * self.coat.ior);
-        let mut f = self.base_eval(e, wi_in, wo_in) * scale;
+        let mut f = self.base_eval(e, wi_in, wo_in);
+        if let (Some(spec), Some(m)) = (&self.spec, &self.metal) {
+            f += self.spec_term(e, spec, m, wi, wo, wi_in, wo_in);
+        }
+        let mut f = f * scale;
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
         }
         Rgb::select(crosses, f, Rgb::zero())
+    }
+
+    /// The metal base's bounce series of the element (as `CoatedPaint`'s, with the element's
+    /// `F0 = ρ`, metal weight and coat α; directions outside and inside the coat).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn spec_term<L: Lanes>(
+        &self,
+        e: &Element<L>,
+        spec: &SpecTables,
+        m: &MetalBase,
+        wi: Vec3<L>,
+        wo: Vec3<L>,
+        wi_in: Vec3<L>,
+        wo_in: Vec3<L>,
+    ) -> Rgb<L> {
+        let (mi, mo) = (mu_at(wi.z, NODES), mu_at(wo.z, NODES));
+        let pair = |t: &Flat| lanes::safe_sqrt(self.lookup(t, NODES, &e.at, &mi) * self.lookup(t, NODES, &e.at, &mo));
+        let w = (pair(&spec.weights[0]), pair(&spec.weights[1]));
+        let n_eff = (self.lookup(&spec.weights[2], NODES, &e.at, &mi)
+            + self.lookup(&spec.weights[2], NODES, &e.at, &mo))
+            * L::c(0.5);
+        let extra = L::c(spec.metal_alpha2) + e.alpha * e.alpha;
+        let added = match (self.blur_one_sided(e, wi_in.z), self.blur_one_sided(e, wo_in.z)) {
+            (Some(a), Some(o)) => (a + extra, o + extra),
+            _ => (extra, extra),
+        };
+        let f0 = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
+        series_lobe(m, f0, e.metal_weight, added, wi_in, wo_in, w, Some(n_eff))
+    }
+
+    /// The bounce series' albedo at `wo` (channels' mean; 0 without it).
+    #[inline(always)]
+    fn spec_albedo<L: Lanes>(&self, e: &Element<L>, m: &MuAt<L>) -> L {
+        let Some(spec) = &self.spec else { return L::c(0.0) };
+        let (s1, s0) = (self.lookup(&spec.albedo[0], NODES, &e.at, m), self.lookup(&spec.albedo[1], NODES, &e.at, m));
+        let f0 = (e.rho[0] + e.rho[1] + e.rho[2]) / L::c(3.0);
+        e.metal_weight * (f0 * s1 + (L::c(1.0) - f0) * s0)
     }
 
     /// What `f` and the lobe selection share at `wo`: `M(μo)` and the top reflectance.
@@ -873,7 +961,7 @@ impl VaryingPaint {
         let [a, b, c] = self.single(e, &o.m);
         let [d, f, g] = o.multiple;
         let third = L::c(3.0);
-        [o.reflectance, (a + b + c) / third, (d + f + g) / third + o.ms]
+        [o.reflectance, (a + b + c) / third + self.spec_albedo(e, &o.m), (d + f + g) / third + o.ms]
     }
 
     /// Whether the coat has a multiple-scattering reflection (a rough or textured-α coat).

@@ -187,8 +187,13 @@ fn table_free_terms_and_density_equal_the_material_per_element() {
                     }
                     let (a1, mm) = cp.layer_albedos(wo.z);
                     let mean = |x: [f64; 3]| (x[0] + x[1] + x[2]) / 3.0;
-                    // (the cosine lobe's weight holds the coat's multiple-scattering reflection)
-                    let sel = [cp.coat().reflectance(wo.z), mean(a1), mean(mm) + cp.coat().ms_albedo(wo.z)];
+                    // (the cosine lobe's weight holds the coat's multiple-scattering reflection,
+                    // the layer lobe's the metal base's bounce series)
+                    let sel = [
+                        cp.coat().reflectance(wo.z),
+                        mean(a1) + cp.spec_series_albedo(wo.z),
+                        mean(mm) + cp.coat().ms_albedo(wo.z),
+                    ];
                     let (got, want) =
                         (vp.pdf_with_selection(e.0, e.1 / 100.0, alpha, *wi, *wo, sel), mat.pdf(*wi, *wo));
                     let err = (got - want).abs() / want.abs().max(1e-6);
