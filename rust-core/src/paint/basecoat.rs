@@ -249,21 +249,25 @@ impl Basecoat {
         if self.metal.is_some() {
             f += self.metal_eval(wi, wo);
         }
-        match &self.blur {
-            None => {
-                if let Some(fl) = &self.flakes {
-                    f += fl.eval_scaled(wi, wo, metal_scale, pearl_scale);
-                }
-            }
-            Some(b) => {
-                let (at_i, at_o) = (b.one_sided(wi.z), b.one_sided(wo.z));
-                if let Some(fl) = &self.flakes {
-                    let (a, o) = (fl.blurred(at_i), fl.blurred(at_o));
-                    f += fl.eval_scaled_with(&o, Some(&a), wi, wo, metal_scale, pearl_scale);
-                }
-            }
+        if self.flakes.is_some() {
+            f += self.flakes_eval(wi, wo, metal_scale, pearl_scale);
         }
         f
+    }
+
+    /// The flakes' lobe alone (0 without flakes), blurred as in [`Basecoat::eval_parts`],
+    /// with the flake populations scaled by `metal_scale` and `pearl_scale`.
+    #[inline(always)]
+    #[must_use]
+    pub fn flakes_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+        let Some(fl) = &self.flakes else { return Rgb::zero() };
+        match &self.blur {
+            None => fl.eval_scaled(wi, wo, metal_scale, pearl_scale),
+            Some(b) => {
+                let (a, o) = (fl.blurred(b.one_sided(wi.z)), fl.blurred(b.one_sided(wo.z)));
+                fl.eval_scaled_with(&o, Some(&a), wi, wo, metal_scale, pearl_scale)
+            }
+        }
     }
 
     /// The metallic base's lobe alone (0 without one), blurred as in [`Basecoat::eval_parts`].

@@ -534,14 +534,38 @@ impl CoatedPaint {
         let (ti, to) = (self.coat.transmittance(wi.z), self.coat.transmittance(wo.z));
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-        let scale = ti * to / T::c(self.coat.ior * self.coat.ior);
-        let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base());
-        if parts.glossy {
-            if let Some(spec) = &self.spec {
-                f += self.spec_term(spec, wi, wo, wi_in, wo_in);
+        let inv_eta2 = T::c(1.0 / (self.coat.ior * self.coat.ior));
+        let mut f = if self.coat.has_crossing() && self.base.flakes.is_some() {
+            // A rough coat: the flakes cross with `g(μi) g(μo)`, the pigment and the metal
+            // base with `T(μi) T(μo)` (`Coat::crossing`).
+            let mut rest = self.base.eval_parts(
+                wi_in,
+                wo_in,
+                metal_scale,
+                pearl_scale,
+                BaseParts { pigment: parts.pigment, glossy: false },
+            );
+            if parts.glossy {
+                rest += self.base.metal_eval(wi_in, wo_in);
+                if let Some(spec) = &self.spec {
+                    rest += self.spec_term(spec, wi, wo, wi_in, wo_in);
+                }
             }
-        }
-        let mut f = f * scale;
+            let mut f = rest * (ti * to * inv_eta2);
+            if parts.glossy {
+                let (gi, go) = (self.coat.crossing(wi.z), self.coat.crossing(wo.z));
+                f += self.base.flakes_eval(wi_in, wo_in, metal_scale, pearl_scale) * (gi * go * inv_eta2);
+            }
+            f
+        } else {
+            let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base());
+            if parts.glossy {
+                if let Some(spec) = &self.spec {
+                    f += self.spec_term(spec, wi, wo, wi_in, wo_in);
+                }
+            }
+            f * (ti * to / T::c(self.coat.ior * self.coat.ior))
+        };
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
@@ -869,8 +893,14 @@ pub(crate) fn mean_albedo(base: &Basecoat, n: usize) -> [f64; 3] {
 struct BaseSampleTerms {
     /// The sample's weight attenuated on its way up to the coat's underside.
     up: [f64; 3],
-    /// The probability that it leaves through the coat (0 under total internal reflection).
+    /// The coat's transmittance on its way out (`T` at the outside direction; 0 under total
+    /// internal reflection).
     escape: f64,
+    /// The crossing factor of the flakes on its way out ([`Coat::escape`]).
+    escape_flakes: f64,
+    /// The flakes' share of the sample (per channel, in [0, 1]; 0 unless the coat is rough
+    /// and the basecoat has flakes: then that share crosses with [`Coat::crossing`]).
+    flake_share: [f64; 3],
     /// The metal lobe's share of the sample (per channel, in [0, 1]; zero without `spec_series`).
     metal_share: [f64; 3],
 }
@@ -894,13 +924,19 @@ fn base_sample_terms(
     let s = base.sample_by(w_in, u, FlakeSampler::Visible)?;
     let a_v = coat.attenuation(s.wi.z);
     let escape = coat.refract_out(s.wi).map_or(0.0, |v| coat.transmittance(v.z));
-    let metal_share = if spec_series {
-        let (fm, fb) = (base.metal_eval(s.wi, w_in), base.eval(s.wi, w_in));
-        [0, 1, 2].map(|c| if fb[c] > 0.0 { (fm[c] / fb[c]).clamp(0.0, 1.0) } else { 0.0 })
-    } else {
-        [0.0; 3]
-    };
-    Some(BaseSampleTerms { up: [0, 1, 2].map(|c| s.weight[c] * a_v[c]), escape, metal_share })
+    let split = coat.has_crossing() && base.flakes.is_some();
+    let fb = if spec_series || split { base.eval(s.wi, w_in) } else { Rgb::zero() };
+    let share = |f: Rgb<f64>| [0, 1, 2].map(|c| if fb[c] > 0.0 { (f[c] / fb[c]).clamp(0.0, 1.0) } else { 0.0 });
+    let metal_share = if spec_series { share(base.metal_eval(s.wi, w_in)) } else { [0.0; 3] };
+    let (escape_flakes, flake_share) =
+        if split { (coat.escape(s.wi), share(base.flakes_eval(s.wi, w_in, 1.0, 1.0))) } else { (escape, [0.0; 3]) };
+    Some(BaseSampleTerms {
+        up: [0, 1, 2].map(|c| s.weight[c] * a_v[c]),
+        escape,
+        escape_flakes,
+        flake_share,
+        metal_share,
+    })
 }
 
 /// Builds `A1(μ)` and `M(μ)` (see the module docs) by stratified sampling of the basecoat.
@@ -952,20 +988,29 @@ fn layer_tables(coat: &Coat, base: &Basecoat, spec_series: bool) -> (MuTable, Mu
     for k in 0..TABLE_NODES {
         let mu = (k as f64 / (TABLE_NODES - 1) as f64).max(1e-4);
         let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-        let t_w = coat.transmittance(mu);
+        // What enters (T) and the flakes' crossing factor (g ≤ T; g = T for a smooth coat):
+        // of the light that enters, the single-scatter term lets out `T·T_out` of the
+        // pigment's and the metal's share and `g·g_out` of the flakes'.
+        let (t_w, g_w) = (coat.transmittance(mu), coat.crossing(mu));
+        let g_over_t = if t_w > 0.0 { g_w / t_w } else { 0.0 };
         let w_in = coat.refract_in(w);
         let a_w = coat.attenuation(w_in.z);
-        let (mut up, mut out, mut rest) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+        let (mut up, mut out, mut out_flakes, mut rest) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
         for u in &points {
             let Some(t) = base_sample_terms(coat, base, w_in, *u, spec_series) else { continue };
             for c in 0..3 {
+                let (q, p) = (t.flake_share[c], 1.0 - t.flake_share[c]);
                 up[c] += t.up[c];
-                out[c] += t.up[c] * t.escape;
-                rest[c] += t.up[c] * (1.0 - t.escape) * (1.0 - t.metal_share[c]);
+                out[c] += t.up[c] * p * t.escape;
+                out_flakes[c] += t.up[c] * q * t.escape_flakes;
+                // Not let out and not the metal's: `(1 − esc)(1 − metal)` as for a smooth
+                // coat, plus what the flakes' crossing keeps in (`esc − g_out g/T`).
+                rest[c] += t.up[c] * (1.0 - t.escape) * (1.0 - t.metal_share[c])
+                    + t.up[c] * q * (t.escape - t.escape_flakes * g_over_t);
             }
         }
         let norm = n as f64;
-        let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * out[c] / norm);
+        let a1: [f64; 3] = [0, 1, 2].map(|c| (t_w * a_w[c] * out[c] + g_w * a_w[c] * out_flakes[c]) / norm);
         let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
         single.push(a1);
         multiple.push(if spec_series {
@@ -1293,6 +1338,60 @@ mod tests {
                 assert!(m.iter().all(|&x| x >= 0.0));
             }
         }
+    }
+
+    /// Issue 17, item 3: a rough interface lets less light out from inside near the normal
+    /// than a smooth one (its facets tilted beyond the critical angle reflect it back down)
+    /// and some beyond the critical angle. `Coat::escape_from_inside` (Walter's
+    /// single-scattering transmission plus a fitted share of its loss) against the lossless
+    /// walk (Heitz et al. 2016; 100 000 walks per direction, σ ≤ 1.6e-3) at α 0.1 / 0.2 / 0.3,
+    /// μ' 1 / 0.9 / 0.8 / 0.7 / 0.5: asserted within 0.008 (measured in the output). The
+    /// smooth refraction the layer term used before (`T` at the refracted direction, 0 beyond
+    /// the critical angle) is 0.095 too high at μ' 1 for α 0.3 (asserted > 0.05, so the test
+    /// fails on it). The crossing factor `g` stays below `T` (energy), equals `T` for a
+    /// smooth coat, and is below `T` at normal incidence for α 0.3. ≈ 1 s in release.
+    #[test]
+    fn escape_from_inside_matches_the_lossless_walk() {
+        use crate::paint::coat::Coat;
+        use crate::paint::rough_dielectric::RoughDielectric;
+        let smooth = Coat::new(1.5, 0.0, 40.0, [0.0; 3]);
+        for k in 0..=20 {
+            let mu = k as f64 / 20.0;
+            assert_eq!(smooth.crossing(mu), smooth.transmittance(mu));
+        }
+        let walks = 100_000;
+        let mut worst = 0.0f64;
+        for alpha in [0.1, 0.2, 0.3] {
+            let coat = Coat::new(1.5, alpha, 40.0, [0.0; 3]);
+            let top = RoughDielectric { eta: 1.5, alpha };
+            for mu_in in [1.0f64, 0.9, 0.8, 0.7, 0.5] {
+                let w = Vec3::new((1.0 - mu_in * mu_in).sqrt(), 0.0, -mu_in);
+                let mut rng = crate::rng::Pcg32::new(0xe5c, (mu_in * 100.0) as u64);
+                let up =
+                    (0..walks).filter(|_| top.sample_multiple(w, &mut rng).is_some_and(|(d, _)| d.z > 0.0)).count();
+                let walk = up as f64 / walks as f64;
+                let model = coat.escape_from_inside(mu_in);
+                let smooth_refraction =
+                    coat.refract_out(Vec3::new(w.x, w.y, mu_in)).map_or(0.0, |o| coat.transmittance(o.z));
+                eprintln!(
+                    "α {alpha} μ' {mu_in}: walk {walk:.4}, escape_from_inside {model:.4} ({:+.4}), smooth refraction {smooth_refraction:.4} ({:+.4})",
+                    model - walk,
+                    smooth_refraction - walk
+                );
+                worst = worst.max((model - walk).abs());
+                assert!((model - walk).abs() < 0.008, "α {alpha} μ' {mu_in}: {model} vs {walk}");
+                if alpha == 0.3 && mu_in == 1.0 {
+                    assert!(smooth_refraction - walk > 0.05, "{smooth_refraction} vs {walk}");
+                }
+            }
+            for k in 0..=40 {
+                let mu = k as f64 / 40.0;
+                assert!(coat.crossing(mu) <= coat.transmittance(mu) + 1e-12, "α {alpha} μ {mu}");
+            }
+        }
+        eprintln!("largest |escape_from_inside − walk| {worst:.4}");
+        let rough = Coat::new(1.5, 0.3, 40.0, [0.0; 3]);
+        assert!(rough.crossing(1.0f64) < rough.transmittance(1.0f64) - 0.02);
     }
 
     /// Issue 17, item 3: the rough coat's multiple-scattering reflection

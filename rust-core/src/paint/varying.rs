@@ -293,6 +293,9 @@ pub struct VaryingPaint {
     alpha_ln: Vec<f64>,
     /// `E_top(μ)` per α node (`E_NODES` each); unused when α does not vary.
     e_top: Flat,
+    /// The crossing factor `g(μ)` (`Coat::crossing`) per α node (`E_NODES` each); unused
+    /// when α does not vary.
+    crossing_top: Flat,
     /// The coat's multiple-scattering reflection `ΔR(μ)` per α node (`E_NODES` each,
     /// [`super::coat::MultipleScattering`]); unused when α does not vary.
     ms_top: Flat,
@@ -442,10 +445,12 @@ impl VaryingPaint {
             })
             .collect();
         let mut e_top = vec![0.0; na * E_NODES];
+        let mut crossing_top = vec![0.0; na * E_NODES];
         let (mut ms_top, mut ms_avg) = (vec![0.0; na * E_NODES], vec![0.0; na]);
         for (j, cj) in coats.iter().enumerate() {
             for m in 0..E_NODES {
                 e_top[j * E_NODES + m] = cj.reflectance(m as f64 / (E_NODES - 1) as f64);
+                crossing_top[j * E_NODES + m] = cj.crossing(m as f64 / (E_NODES - 1) as f64);
             }
             if let Some(ms) = cj.multiple_scattering() {
                 // The coat's own nodes (E_NODES of them), so interpolation agrees.
@@ -465,6 +470,7 @@ impl VaryingPaint {
             alpha_ln: alphas.iter().map(|a| a.ln()).collect(),
             coat,
             e_top: Flat::new(e_top),
+            crossing_top: Flat::new(crossing_top),
             ms_top: Flat::new(ms_top),
             ms_avg: Flat::new(ms_avg),
             folded,
@@ -728,6 +734,16 @@ impl VaryingPaint {
         lanes::max(L::c(1.0) - reflectance - ms, L::c(0.0))
     }
 
+    /// The glossy lobes' crossing factor `g(μ)` of the single-scatter layer term (`Coat::crossing`).
+    #[inline(always)]
+    fn crossing<L: Lanes>(&self, e: &Element<L>, mu: L) -> L {
+        if !self.varies_alpha() || !self.coat.has_interface() {
+            return self.coat.crossing(mu);
+        }
+        // The α grid's coats are all rough.
+        self.lookup(&self.crossing_top, E_NODES, &e.at, &mu_at(mu, E_NODES))
+    }
+
     #[inline(always)]
     fn coat_microfacet<L: Lanes>(e: &Element<L>) -> Microfacet<L> {
         Microfacet::new(DistributionKind::Ggx, e.alpha, e.alpha)
@@ -773,13 +789,13 @@ impl VaryingPaint {
         !self.varies_alpha() && self.coat.is_smooth()
     }
 
-    /// The basecoat BRDF of the element (directions inside the coat). The flake lobe is
-    /// skipped when no lane has flakes.
+    /// The basecoat BRDF of the element (directions inside the coat) as its pigment and metal
+    /// base, and its flakes. The flake lobe is skipped when no lane has flakes.
     #[inline(always)]
-    fn base_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
+    fn base_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, Rgb<L>) {
         let inv_pi = L::c(std::f64::consts::FRAC_1_PI);
         let pw = e.pigment_weight;
-        let mut f = match &self.pearl_transmission {
+        let pigment = match &self.pearl_transmission {
             None => Rgb::new(e.rho[0] * inv_pi * pw, e.rho[1] * inv_pi * pw, e.rho[2] * inv_pi * pw),
             Some(t) => {
                 let (a, b) = (t.eval_lanes(wi.z), t.eval_lanes(wo.z));
@@ -791,6 +807,7 @@ impl VaryingPaint {
                 )
             }
         };
+        let mut f = pigment;
         let (at_i, at_o) = (self.blur_one_sided(e, wi.z), self.blur_one_sided(e, wo.z));
         if let Some(m) = &self.metal {
             let rho = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
@@ -799,9 +816,10 @@ impl VaryingPaint {
                 _ => m.eval_with(&m.microfacet::<L>(), None, rho, e.metal_weight, wi, wo),
             };
         }
+        let mut flakes = Rgb::zero();
         if let Some(fl) = &self.flakes {
             if self.pearl_c > 0.0 || lanes::gt(e.c, L::c(0.0)).any() {
-                f += match (at_i, at_o) {
+                flakes = match (at_i, at_o) {
                     (Some(a), Some(o)) => {
                         fl.eval_scaled_with(&fl.blurred(o), Some(&fl.blurred(a)), wi, wo, e.c, L::c(1.0))
                     }
@@ -809,7 +827,7 @@ impl VaryingPaint {
                 };
             }
         }
-        f
+        (f, flakes)
     }
 
     /// What the transmission blur adds to the base lobes' `α²` seen from an inside direction
@@ -873,11 +891,17 @@ impl VaryingPaint {
         let crosses = lanes::gt(ti, L::c(0.0)) & lanes::gt(to, L::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / L::c(self.coat.ior * self.coat.ior);
-        let mut f = self.base_eval(e, wi_in, wo_in);
+        let (mut rest, flakes) = self.base_eval(e, wi_in, wo_in);
         if let (Some(spec), Some(m)) = (&self.spec, &self.metal) {
-            f += self.spec_term(e, spec, m, wi, wo, wi_in, wo_in);
+            rest += self.spec_term(e, spec, m, wi, wo, wi_in, wo_in);
         }
-        let mut f = f * scale;
+        let mut f = if self.varies_alpha() || self.coat.has_crossing() {
+            // A rough coat: the flakes cross with `g(μi) g(μo)` (`Coat::crossing`).
+            let flake_scale = self.crossing(e, wi.z) * self.crossing(e, wo.z) / L::c(self.coat.ior * self.coat.ior);
+            rest * scale + flakes * flake_scale
+        } else {
+            (rest + flakes) * scale
+        };
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
             f = Rgb::new(f.r * ai[0] * ao[0], f.g * ai[1] * ao[1], f.b * ai[2] * ao[2]);
@@ -1197,6 +1221,7 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
     let rho_bar = super::coated_paint::mean_albedo(&bare, super::coated_paint::MEAN_ALBEDO_SAMPLES);
     let na = coats.len();
     let specular = base.metal.is_some() || base.flakes.is_some();
+    let flakes = base.flakes.is_some();
     // The basecoat each coat sees (one for all when nothing of it blurs).
     let bases: Vec<Basecoat> = if specular {
         coats.iter().map(|cj| bare.clone().with_blur(cj.transmission_blur())).collect()
@@ -1225,7 +1250,9 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
                             up[j][c] += s.weight[c] * a_v[c];
                         }
                         if let Some(v) = exit {
-                            let esc = coats[j].transmittance(v.z);
+                            // The flakes leave with the crossing factor, the pigment and the
+                            // metal base with `T` (`Coat::crossing`).
+                            let esc = if flakes { coats[j].crossing(v.z) } else { coats[j].transmittance(v.z) };
                             for c in 0..3 {
                                 out[j][c] += s.weight[c] * a_v[c] * esc;
                             }
@@ -1239,7 +1266,8 @@ fn component_tables(coats: &[Coat], base: &Basecoat) -> ComponentTables {
                 .zip(out.iter().zip(&up))
                 .map(|(cj, (o, up))| {
                     let t_w = cj.transmittance(mu);
-                    let a1: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * o[c] / norm);
+                    let g_w = if flakes { cj.crossing(mu) } else { t_w };
+                    let a1: [f64; 3] = [0, 1, 2].map(|c| g_w * a_w[c] * o[c] / norm);
                     let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
                     (a1, [0, 1, 2].map(|c| u[c] - a1[c]))
                 })
