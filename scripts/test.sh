@@ -124,8 +124,14 @@ python3 bench/vs_mitsuba.py --quick >/dev/null
 
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
+step "mitsuba-plugin/test.sh"
+bash mitsuba-plugin/test.sh
+step "blender-addon/test.sh"
+bash blender-addon/test.sh
 # Fuzzing smoke run (docs/reliability.md): the four cargo-fuzz targets, 10 s each from their
 # committed corpora; installs cargo-fuzz when absent and fails without the nightly toolchain.
+# Last, so that its background build has every mostly single-threaded step above to run beside
+# (docs/reliability.md, "CI duration, fifth pass").
 step "fuzz/smoke.sh (cargo-fuzz: material JSON, MERL tables, render jobs, C ABI call sequences; 4 x 10 s)"
 fuzz_build_rc=0
 wait "$fuzz_build_pid" || fuzz_build_rc=$?
@@ -134,7 +140,3 @@ rm -f "$fuzz_build_log"
 fuzz_build_pid=""
 [ "$fuzz_build_rc" = 0 ] || { echo "fuzz/smoke.sh --build-only failed (exit $fuzz_build_rc)" >&2; exit 1; }
 bash fuzz/smoke.sh
-step "mitsuba-plugin/test.sh"
-bash mitsuba-plugin/test.sh
-step "blender-addon/test.sh"
-bash blender-addon/test.sh

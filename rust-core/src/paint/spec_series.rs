@@ -157,30 +157,45 @@ impl SpecSeries {
                 n_eff = nodes.iter().map(|&(_, w_in)| later_bounces(&base, coat, w_in)).collect();
             }
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
+            // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
+            // node's samples of the widened lobe are drawn and evaluated once, at unit weight:
+            // per sample `f₁ cos θi / pdf · escape` and the exit's `μ`; the fixed-point rounds
+            // below only reweight them.
+            let unit_samples: Vec<Vec<(f64, f64)>> = nodes
+                .iter()
+                .map(|&(mu, w_in)| {
+                    if coat.transmittance(mu) <= 0.0 {
+                        return Vec::new();
+                    }
+                    let wide = metal.blurred::<f64>(added(w_in.z));
+                    points
+                        .iter()
+                        .filter_map(|u| {
+                            let wi = MetalBase::sample_direction_with(&wide, w_in, u[1], u[2]);
+                            let pdf = MetalBase::pdf_with(&wide, wi, w_in);
+                            if wi.z <= 0.0 || !(pdf > 0.0) {
+                                return None;
+                            }
+                            let added = (added(wi.z), added(w_in.z));
+                            let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (1.0, 1.0), None);
+                            Some((mu_out(wi), f.r * wi.z / pdf * escape(wi)))
+                        })
+                        .collect()
+                })
+                .collect();
             let albedo_with = |w: &[f64]| -> Vec<f64> {
                 let table = MuTable::from_values(w.iter().map(|&x| [x, 0.0, 0.0]).collect());
                 let at = |mu: f64| table.eval::<f64>(mu)[0];
                 nodes
                     .iter()
+                    .zip(&unit_samples)
                     .enumerate()
-                    .map(|(k, &(mu, w_in))| {
+                    .map(|(k, (&(mu, _), samples))| {
                         let t = coat.transmittance(mu);
                         if t <= 0.0 || w[k] <= 0.0 {
                             return 0.0;
                         }
-                        let wide = metal.blurred::<f64>(added(w_in.z));
-                        let mut out = 0.0;
-                        for u in &points {
-                            let wi = MetalBase::sample_direction_with(&wide, w_in, u[1], u[2]);
-                            let pdf = MetalBase::pdf_with(&wide, wi, w_in);
-                            if wi.z <= 0.0 || !(pdf > 0.0) {
-                                continue;
-                            }
-                            let pair = (at(mu_out(wi)) * w[k]).sqrt();
-                            let added = (added(wi.z), added(w_in.z));
-                            let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (pair, pair), None);
-                            out += f.r * wi.z / pdf * escape(wi);
-                        }
+                        let out: f64 = samples.iter().map(|&(mu_exit, unit)| (at(mu_exit) * w[k]).sqrt() * unit).sum();
                         t * out / SAMPLES as f64
                     })
                     .collect()
