@@ -415,6 +415,14 @@ impl Coat {
         t + inside_escape_share(mu_inside) * (1.0 - r - t).max(0.0)
     }
 
+    /// [`Coat::escape_from_inside`] tabulated over the inside cosine `μ'` ∈ [0, 1] (64 nodes,
+    /// linear in between; for a smooth coat the macro-normal refraction's `T`, which has a kink
+    /// at the critical angle that the table rounds off between two nodes).
+    #[must_use]
+    pub fn inside_escape_table(&self) -> MuTable {
+        MuTable::build(ALBEDO_NODES, |mu_inside| [self.escape_from_inside(mu_inside); 3])
+    }
+
     /// The rough top reflection `F(wo·h) D(h) G(wi, wo) / (4 cos θi cos θo)` (0 when smooth).
     #[inline(always)]
     #[must_use]

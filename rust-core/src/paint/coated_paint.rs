@@ -75,8 +75,8 @@
 //! coat's multiple-scattering reflection, [`super::coat::MultipleScattering`]); over flakes 2–9 % high
 //! for α 0.1–0.3 (1.5–7 % with the blur); over a sharp metal base (α 0.05) the blur brings the
 //! lobe shape from 5–93 % to 1.6–7.2 % off at θo ≤ 40°; at θo 75° the bounce series brings it
-//! from 21–24 % to 5.3–10.8 % (albedo within 2 % for coat α ≤ 0.1, 8.7–14.4 % low at α 0.2–0.3:
-//! the blur's grazing total internal reflection).
+//! from 21–24 % to 5.2–10.6 % (albedo within 2 % for coat α ≤ 0.03 and 0.2, +3.7 % at α 0.1,
+//! −7.9 % at α 0.3: the symmetric blur's min loses energy at grazing view).
 //!
 //! ## Sparkle
 //! With a surface point and footprint ([`Bxdf::eval_at`]), each flake population's lobe in
@@ -1337,6 +1337,34 @@ mod tests {
                 assert!(total <= 1.0 + 1e-9, "α {alpha}, μ {mu}: {total}");
                 assert!(m.iter().all(|&x| x >= 0.0));
             }
+        }
+    }
+
+    /// Issue 17, item 3 (third pass): the albedo of a sharp metal base (α 0.05, F0 0.9) under
+    /// rough coats against the lossless reference (100 000 walks and analytic samples per
+    /// view, noise ±0.5 %). Before: −8.7 % (coat α 0.2, θo 75°), −3.7 % and −14.4 % (α 0.3,
+    /// θo 40° / 75°; §8 of docs/paint-validation.md, 400 000 walks): the bounce series' scale
+    /// was capped below what the coat sends back down, and its later bounces escaped only
+    /// through the macro-normal refraction. Measured now (400 000 walks): +1.5 % / −1.1 %
+    /// (α 0.2, θo 40° / 75°), −1.0 % / −7.9 % (α 0.3). Asserted: within 3 % for α 0.2 and for
+    /// α 0.3 at 40°; above −10 % for α 0.3 at 75° (the ≤ 2 % goal is **not** met there: the
+    /// symmetric transmission blur's min loses 22 % of the metal's albedo at μ' 0.77, see
+    /// the doc). Each bound fails on the old model. ≈ 2 s in release.
+    #[test]
+    fn rough_coat_metal_base_albedo_against_the_reference() {
+        for (alpha, theta, low, high) in
+            [(0.2, 40.0, -0.03, 0.03), (0.2, 75.0, -0.03, 0.03), (0.3, 40.0, -0.03, 0.03), (0.3, 75.0, -0.10, 0.03)]
+        {
+            let p = paint(&format!(
+                r#"{{"model": "coated_paint", "coat_roughness": {alpha}, "flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": 0.9}}"#
+            ));
+            let t = f64::to_radians(theta);
+            let wo = Vec3::new(t.sin(), 0.0, t.cos());
+            let mut rng = crate::rng::Pcg32::new(0x3e7a1, theta as u64);
+            let (_, analytic, reference) = lobe_against_the_reference(&p, wo, 100_000, &mut rng);
+            let err = analytic / reference - 1.0;
+            eprintln!("coat α {alpha}, θo {theta}°: albedo {analytic:.4} vs {reference:.4} ({:+.2} %)", 100.0 * err);
+            assert!((low..high).contains(&err), "coat α {alpha}, θo {theta}°: albedo error {err}");
         }
     }
 

@@ -25,15 +25,22 @@
 //! `R_F(μ)` is what the coat reflects back down after the first base bounce (the layer
 //! tables' `U − A1` of that component) and `A_F(μ)` the albedo of the widened term with unit
 //! weights; `w_F = σ_F R_F/A_F`. With the weights `√(w(μi) w(μo))` the term's albedo
-//! `S_F(μ)` is only close to `R_F(μ)`, so `σ_F = min(1, min_μ R_F/S_F)` (over the table
-//! nodes) makes `S_F ≤ R_F` at every node: since the paint's `S` is `m(F0 S₁ + (1 − F0) S₀)`
+//! `S_F(μ)` is only close to `R_F(μ)`, so `σ_F = min_μ R_F/S_F` (over the table nodes)
+//! makes `S_F ≤ R_F` at every node, with equality at the tightest one. (Until issue 17's
+//! third pass `σ_F` was also capped at 1; the fixed-point rounds fix the shape of `S_F/R_F`
+//! but not its scale — a uniform error flips between `c` and `1/c` from round to round — so
+//! the cap left the series' albedo ≈ 8 % below `R_F` at every node for coat α 0.2–0.3.) Since the paint's `S` is `m(F0 S₁ + (1 − F0) S₀)`
 //! and its `R_spec` is `m(F0 R₁ + (1 − F0) R₀)`, `S ≤ R_spec` for every `F0` in [0, 1] and
 //! weight `m`, and the albedo `E_top + ΔR + A1 + S + M ≤ E_top + ΔR + A1 + R_spec + R_rest =
 //! E_top + ΔR + U ≤ 1` (up to the tables' linear interpolation between nodes).
 //!
-//! **Assumptions**: every later metal bounce is lossless (the series' `F0^k` for `k ≥ 2`
-//! bounces is not modelled: `S` returns all of `R_spec` for `F0 = 1` and proportionally less
-//! through the first bounce's Fresnel otherwise, an over-estimate for dark metals); the lobe of
+//! **Later bounces**: a grey metal absorbs `1 − F0` at each later bounce; the lobe carries
+//! `F0^n` per channel with `n` the effective number of later metal bounces per node
+//! ([`later_bounces`]: walks under the coat whose interface lets out what the lossless rough
+//! interface does, [`Coat::escape_from_inside`], also beyond the critical angle).
+//!
+//! **Assumptions**: the later bounces' Fresnel is `F0` (Schlick's normal value, exact for
+//! `F0` = 1 and matched at `F0` = 0.9 by `n`); the lobe of
 //! all later orders is one GGX lobe widened by one round trip (the second order, which
 //! dominates when the coat reflects little); the weights are computed without the coat's
 //! absorption (which scales `S` through `τ(wi') τ(wo')` at evaluation); the weight of a pair of
@@ -154,7 +161,8 @@ impl SpecSeries {
                 }
             }
             if c == 0 {
-                n_eff = nodes.iter().map(|&(_, w_in)| later_bounces(&base, coat, w_in)).collect();
+                let inside_escape = coat.inside_escape_table();
+                n_eff = nodes.iter().map(|&(_, w_in)| later_bounces(&base, coat, &inside_escape, w_in)).collect();
             }
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
             // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
@@ -201,7 +209,8 @@ impl SpecSeries {
                     .collect()
             };
             // Unit weights first (w = R/A), then w ← w (R/S)²: the pair weight √(w(μi) w(μo))
-            // moves the albedo at μo about as √w(μo).
+            // moves the albedo at μo about as √w(μo). A uniform factor moves it as w, so the
+            // rounds settle the shape of S/R only; σ below sets the scale.
             let a = albedo_with(&vec![1.0; NODES]);
             let mut w: Vec<f64> = r.iter().zip(&a).map(|(&r, &a)| if a > 1e-12 { r / a } else { 0.0 }).collect();
             for _ in 0..ROUNDS {
@@ -214,7 +223,7 @@ impl SpecSeries {
             }
             let s = albedo_with(&w);
             let sigma =
-                r.iter().zip(&s).filter(|(_, &s)| s > 0.0).fold(1.0_f64, |acc, (&r, &s)| acc.min(r / s)).max(0.0);
+                r.iter().zip(&s).filter(|(_, &s)| s > 0.0).fold(f64::INFINITY, |acc, (&r, &s)| acc.min(r / s)).max(0.0);
             weights[c] = w.iter().map(|w| sigma * w).collect();
             albedo[c] = s.iter().map(|s| sigma * s).collect();
         }
@@ -234,19 +243,34 @@ const F_REF: f64 = 0.9;
 
 /// The effective number `n` of later metal bounces of the light the coat sends back down
 /// after the first bounce from the inside direction `w_in`: walks of a white metal (`base`,
-/// F0 = 1) under `coat` (internal reflection `1 − escape`, mirrored at the mean plane; the
-/// coat's roughness enters through the base's blur only) give the escaping energy `E[1]` and
-/// `E[F_ref^N]` (`N` the metal bounces after the return, `F_ref` = 0.9), and
-/// `n = ln(E[F_ref^N]/E[1]) / ln F_ref`, so `F^n` is exact for `F` = 1 and 0.9. Light that
-/// total internal reflection keeps near the base's mirror direction meets the metal many
-/// times (`n` large): a grey metal absorbs it.
-fn later_bounces(base: &Basecoat, coat: &Coat, w_in: Vec3<f64>) -> f64 {
+/// F0 = 1) under `coat` (mirrored at the mean plane; the coat's roughness enters through the
+/// base's blur) give the escaping energy `E[1]` and `E[F_ref^N]` (`N` the metal bounces after
+/// the return, `F_ref` = 0.9), and `n = ln(E[F_ref^N]/E[1]) / ln F_ref`, so `F^n` is exact for
+/// `F` = 1 and 0.9. Light that total internal reflection keeps near the base's mirror
+/// direction meets the metal many times (`n` large): a grey metal absorbs it.
+///
+/// The walk starts from what the layer tables count as sent back down (`1 − escape` of the
+/// macro-normal refraction, `escape`), but a rough interface lets more out than that, also
+/// beyond the critical angle (`inside_escape`: [`Coat::escape_from_inside`], 0.18–0.44 at
+/// μ' 0.70–0.74 for α 0.1–0.3, where the macro refraction gives 0): the share
+/// `(T_out − escape)/(1 − escape)` of the returned light leaves at once, with no later metal
+/// bounce, and every later return escapes with `T_out`. For a smooth coat `T_out` is `escape`
+/// and the walk is the macro-refraction one.
+fn later_bounces(base: &Basecoat, coat: &Coat, inside_escape: &MuTable, w_in: Vec3<f64>) -> f64 {
     let escape = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| coat.transmittance(o.z));
+    let t_out = |v: Vec3<f64>| inside_escape.eval::<f64>(v.z.clamp(0.0, 1.0))[0];
     let mut rng = Pcg32::new(0x5bec_5e1e5, (w_in.z * 1e6) as u64);
     let (mut e1, mut eref) = (0.0, 0.0);
     for _ in 0..WALKS {
         let Some(first) = base.sample_by(w_in, rng.uniform3(), FlakeSampler::Visible) else { continue };
-        let mut weight = first.weight[0] * (1.0 - escape(first.wi));
+        let macro_escape = escape(first.wi);
+        let mut weight = first.weight[0] * (1.0 - macro_escape);
+        if macro_escape < 1.0 {
+            let at_once = ((t_out(first.wi) - macro_escape) / (1.0 - macro_escape)).clamp(0.0, 1.0);
+            e1 += weight * at_once;
+            eref += weight * at_once;
+            weight *= 1.0 - at_once;
+        }
         let mut v = first.wi;
         let mut f = 1.0;
         for _ in 0..MAX_ROUNDS {
@@ -259,7 +283,7 @@ fn later_bounces(base: &Basecoat, coat: &Coat, w_in: Vec3<f64>) -> f64 {
             weight *= b.weight[0];
             f *= F_REF;
             v = b.wi;
-            let esc = escape(v);
+            let esc = t_out(v);
             e1 += weight * esc;
             eref += weight * esc * f;
             weight *= 1.0 - esc;
