@@ -19,6 +19,9 @@
 //!   reflection);
 //! - the noise floor of both (the same quantities computed from the two estimates' standard
 //!   errors alone).
+//!
+//! The per-cell log (stderr) also gives both albedos of the light that crossed the coat, so
+//! an albedo error splits into the top reflection's and the body's.
 
 use lacquer::frame::spherical_direction;
 use lacquer::paint::coated_paint::CoatedPaint;
@@ -154,8 +157,8 @@ fn main() {
                 let all = compare(&a.all, &r.all);
                 let b = compare(&a.body, &r.body);
                 eprintln!(
-                    "{base_name} α {alpha} θo {theta}: albedo {:.4} vs {:.4} ({:+.2} % ± {:.2}), lobe {:.2} % (noise {:.2}), body lobe {:.2} % (noise {:.2}) [{:.0} s]",
-                    all[0], all[1], 100.0 * all[2], 100.0 * all[3], 100.0 * all[4], 100.0 * all[5], 100.0 * b[4], 100.0 * b[5],
+                    "{base_name} α {alpha} θo {theta}: albedo {:.4} vs {:.4} ({:+.2} % ± {:.2}; of it through the coat {:.4} vs {:.4}), lobe {:.2} % (noise {:.2}), body lobe {:.2} % (noise {:.2}) [{:.0} s]",
+                    all[0], all[1], 100.0 * all[2], 100.0 * all[3], b[0], b[1], 100.0 * all[4], 100.0 * all[5], 100.0 * b[4], 100.0 * b[5],
                     start.elapsed().as_secs_f64()
                 );
                 cells.push(format!(
