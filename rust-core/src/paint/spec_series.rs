@@ -29,9 +29,9 @@
 //! makes `S_F ≤ R_F` at every node, with equality at the tightest one. (Until issue 17's
 //! third pass `σ_F` was also capped at 1; the fixed-point rounds fix the shape of `S_F/R_F`
 //! but not its scale — a uniform error flips between `c` and `1/c` from round to round — so
-//! the cap left the series' albedo ≈ 8 % below `R_F` at every node for coat α 0.2–0.3.) Since the paint's `S` is `m(F0 S₁ + (1 − F0) S₀)`
-//! and its `R_spec` is `m(F0 R₁ + (1 − F0) R₀)`, `S ≤ R_spec` for every `F0` in [0, 1] and
-//! weight `m`, and the albedo `E_top + ΔR + A1 + S + M ≤ E_top + ΔR + A1 + R_spec + R_rest =
+//! the cap left the series' albedo 8–10 % below `R_F` at every node for coat α 0.1–0.3.)
+//! Since the paint's `S` is `m(F0 S₁ + (1 − F0) S₀)` and its `R_spec` is
+//! `m(F0 R₁ + (1 − F0) R₀)`, `S ≤ R_spec` for every `F0` in [0, 1] and weight `m`, and the albedo `E_top + ΔR + A1 + S + M ≤ E_top + ΔR + A1 + R_spec + R_rest =
 //! E_top + ΔR + U ≤ 1` (up to the tables' linear interpolation between nodes).
 //!
 //! **Later bounces**: a grey metal absorbs `1 − F0` at each later bounce; the lobe carries
