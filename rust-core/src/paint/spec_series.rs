@@ -36,7 +36,7 @@
 //!
 //! **Later bounces**: a grey metal absorbs `1 − F0` at each later bounce; the lobe carries
 //! `F0^n` per channel with `n` the effective number of later metal bounces per node
-//! ([`later_bounces`]: walks under the coat whose interface lets out what the lossless rough
+//! (`later_bounces`: walks under the coat whose interface lets out what the lossless rough
 //! interface does, [`Coat::escape_from_inside`], also beyond the critical angle).
 //!
 //! **Assumptions**: the later bounces' Fresnel is `F0` (Schlick's normal value, exact for
@@ -70,7 +70,7 @@ const SAMPLES: usize = 2048;
 #[derive(Clone, Debug)]
 pub struct SpecSeries {
     /// `[w₁, w₀, n]` per outside `μ` node (`n` the effective number of later metal bounces,
-    /// [`later_bounces`]).
+    /// `later_bounces`).
     pub weights: MuTable,
     /// `[S₁, S₀, 0]`: the term's albedo per unit metal weight, per component (for the lobe
     /// selection).
