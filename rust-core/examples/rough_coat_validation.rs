@@ -21,7 +21,8 @@
 //!   errors alone).
 //!
 //! The per-cell log (stderr) also gives both albedos of the light that crossed the coat, so
-//! an albedo error splits into the top reflection's and the body's.
+//! an albedo error splits into the top reflection's and the body's, and the reference's light
+//! that crossed the coat by the number of basecoat bounces before it left (1, 2, 3, 4+).
 
 use lacquer::frame::spherical_direction;
 use lacquer::paint::coated_paint::CoatedPaint;
@@ -55,6 +56,9 @@ type Curve = Vec<(f64, f64)>;
 struct Lobe {
     all: LobeHistogram,
     body: LobeHistogram,
+    /// The reference's light that crossed the coat by the number of basecoat bounces before
+    /// it left (1, 2, 3, 4 or more; luminance albedo): which orders an albedo error sits in.
+    by_bounces: [f64; 4],
 }
 
 fn accumulate(sum: &mut [[f64; 3]], sum2: &mut [[f64; 3]], b: usize, v: Rgb<f64>) {
@@ -70,17 +74,20 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
     let (mut s, mut s2, mut b, mut b2) =
         (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0x7c0a7);
+    let mut by_bounces = [0.0; 4];
     for _ in 0..walks {
         let Some(exit) = mc.albedo_walk_exit(wo, &mut rng) else { continue };
         let k = lobe_bin(exit.direction, 0.0, N_MU, N_PHI);
         accumulate(&mut s, &mut s2, k, exit.weight);
         if exit.entered {
             accumulate(&mut b, &mut b2, k, exit.weight);
+            by_bounces[(exit.base_bounces.max(1) as usize - 1).min(3)] += exit.weight.luminance() / walks as f64;
         }
     }
     Lobe {
         all: LobeHistogram::from_sums(&s, &s2, walks, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, walks, N_MU, N_PHI),
+        by_bounces,
     }
 }
 
@@ -103,6 +110,7 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
     Lobe {
         all: LobeHistogram::from_sums(&s, &s2, samples, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, samples, N_MU, N_PHI),
+        by_bounces: [0.0; 4],
     }
 }
 
@@ -157,8 +165,10 @@ fn main() {
                 let all = compare(&a.all, &r.all);
                 let b = compare(&a.body, &r.body);
                 eprintln!(
-                    "{base_name} α {alpha} θo {theta}: albedo {:.4} vs {:.4} ({:+.2} % ± {:.2}; of it through the coat {:.4} vs {:.4}), lobe {:.2} % (noise {:.2}), body lobe {:.2} % (noise {:.2}) [{:.0} s]",
-                    all[0], all[1], 100.0 * all[2], 100.0 * all[3], b[0], b[1], 100.0 * all[4], 100.0 * all[5], 100.0 * b[4], 100.0 * b[5],
+                    "{base_name} α {alpha} θo {theta}: albedo {:.4} vs {:.4} ({:+.2} % ± {:.2}; of it through the coat {:.4} vs {:.4}; the reference's after 1 / 2 / 3 / 4+ base bounces {:.4} / {:.4} / {:.4} / {:.4}), lobe {:.2} % (noise {:.2}), body lobe {:.2} % (noise {:.2}) [{:.0} s]",
+                    all[0], all[1], 100.0 * all[2], 100.0 * all[3], b[0], b[1],
+                    r.by_bounces[0], r.by_bounces[1], r.by_bounces[2], r.by_bounces[3],
+                    100.0 * all[4], 100.0 * all[5], 100.0 * b[4], 100.0 * b[5],
                     start.elapsed().as_secs_f64()
                 );
                 cells.push(format!(

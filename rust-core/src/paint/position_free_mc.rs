@@ -121,6 +121,8 @@ pub struct WalkExit {
     pub direction: Vec3<f64>,
     /// False for light the top reflected at once; true for light that crossed the coat.
     pub entered: bool,
+    /// How many times the path scattered off the basecoat (0 for the top reflection).
+    pub base_bounces: u32,
 }
 
 /// The bin of direction `d` (upper hemisphere) in a lobe histogram around azimuth `phi_o`.
@@ -320,10 +322,11 @@ impl<'a> PositionFreeMc<'a> {
         let (d, weight) = self.top_scatter(wo, rng)?;
         let mut beta = Rgb::splat(weight);
         if d.z > 0.0 {
-            return Some(WalkExit { weight: beta, direction: d, entered: false });
+            return Some(WalkExit { weight: beta, direction: d, entered: false, base_bounces: 0 });
         }
         let mut w = d;
         let mut at_bottom = false;
+        let mut base_bounces = 0;
         for depth in 0..self.max_depth {
             let m = beta.max_channel();
             if depth > 3 && m < 0.25 {
@@ -339,12 +342,13 @@ impl<'a> PositionFreeMc<'a> {
                 let bs = self.base.sample(-w, rng.uniform3())?;
                 beta = beta * bs.weight;
                 w = bs.wi;
+                base_bounces += 1;
             } else {
                 let (d, weight) = self.top_scatter(-w, rng)?;
                 beta *= weight;
                 w = d;
                 if w.z > 0.0 {
-                    return Some(WalkExit { weight: beta, direction: w, entered: true });
+                    return Some(WalkExit { weight: beta, direction: w, entered: true, base_bounces });
                 }
             }
         }
@@ -492,6 +496,47 @@ mod tests {
                 let expect = fo + (1.0 - fo) * r * (1.0 - ri) / (1.0 - r * ri);
                 let tol = 4.0 * e.std_error[c] + 1e-4;
                 assert!((e.value[c] - expect).abs() < tol, "θo {to} ch {c}: {} vs {expect} ± {tol}", e.value[c]);
+            }
+        }
+    }
+
+    /// The walks' basecoat bounce counts against the same closed form split by order: the light
+    /// that leaves after exactly `k` bounces off a Lambertian base under a smooth coat is
+    /// `(1 − F(μo)) ρᵏ r̄_iᵏ⁻¹ (1 − r̄_i)` (each bounce sends `ρ`, of which the coat's underside
+    /// returns `r̄_i`); the top reflection counts 0 bounces and has not entered.
+    #[test]
+    fn walk_exits_count_the_basecoat_bounces() {
+        let rho: [f64; 3] = [0.2, 0.5, 0.9];
+        let eta = 1.5;
+        let p = paint(
+            r#"{"model": "coated_paint", "coat_ior": 1.5, "coat_roughness": 0, "flake_density": 0, "base_color": [0.2, 0.5, 0.9]}"#,
+        );
+        let ri = internal_diffuse_reflectance(eta);
+        let mc = PositionFreeMc::new(&p);
+        let walks = 200_000;
+        for (seed, to) in [0.0, 60.0].iter().enumerate() {
+            let wo = dir(*to, 0.4);
+            let mut rng = Pcg32::new(seed as u64, 99);
+            let (mut sum, mut sum2) = ([[0.0; 3]; 4], [[0.0; 3]; 4]);
+            for _ in 0..walks {
+                let Some(exit) = mc.albedo_walk_exit(wo, &mut rng) else { continue };
+                assert_eq!(exit.entered, exit.base_bounces > 0, "{exit:?}");
+                let k = (exit.base_bounces as usize).min(3);
+                for c in 0..3 {
+                    sum[k][c] += exit.weight[c];
+                    sum2[k][c] += exit.weight[c] * exit.weight[c];
+                }
+            }
+            let fo = fresnel::dielectric(wo.z, eta);
+            for k in 1..3 {
+                for (c, r) in rho.iter().enumerate() {
+                    let expect = (1.0 - fo) * r.powi(k as i32) * ri.powi(k as i32 - 1) * (1.0 - ri);
+                    let n = walks as f64;
+                    let mean = sum[k][c] / n;
+                    let se = ((sum2[k][c] / n - mean * mean).max(0.0) / n).sqrt();
+                    let tol = 4.0 * se + 1e-4;
+                    assert!((mean - expect).abs() < tol, "θo {to} k {k} ch {c}: {mean} vs {expect} ± {tol}");
+                }
             }
         }
     }
