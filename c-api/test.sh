@@ -121,17 +121,20 @@ step "run threads (8 threads x 2e5 evaluations, bit-identical to one thread)" "$
 if [ "$skip_valgrind" = 0 ]; then
     # The C consumer under valgrind once, linked statically: the shared-library build runs the
     # same calls through the same library code, and consumer_cpp covers the shared library.
-    # Each run takes ~36 s (most of it the quick check lq_check_material runs), so the third
-    # run was cut from CI's budget (docs/reliability.md, "CI duration, fourth pass").
+    # Each run takes ~8 s on an idle machine (75 s before lq_presets_json stopped building every
+    # preset: docs/reliability.md, "CI duration, seventh pass"); the third run was cut from CI's
+    # budget when it cost more ("CI duration, fourth pass").
     for exe in consumer_c_static consumer_cpp; do
         step "valgrind $exe" valgrind -q --error-exitcode=1 --leak-check=full --suppressions="$here/valgrind.supp" \
             --errors-for-leak-kinds=definite,indirect,possible --show-leak-kinds=definite,indirect,possible \
             "$bin/$exe"
     done
     # Race detection on the threaded consumer (docs/reliability.md): DRD, 4 threads x 4096
-    # elements plus the create/free threads; any reported conflict fails the step.
-    step "valgrind --tool=drd threads (4 threads x 4096)" \
-        valgrind -q --tool=drd --error-exitcode=1 "$bin/threads" 4096 4
+    # elements plus the create/free threads, 4 create/free rounds each (every shared material
+    # created once per churn thread: DRD runs one thread at a time, and unbounded churn made
+    # this step take 61-145 s); any reported conflict fails the step.
+    step "valgrind --tool=drd threads (4 threads x 4096, 4 churn rounds)" \
+        valgrind -q --tool=drd --error-exitcode=1 "$bin/threads" 4096 4 4
 fi
 
 # --- 5. Python wheel and pytest -------------------------------------------------------------------

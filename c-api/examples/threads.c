@@ -4,8 +4,14 @@
  * create and free materials (valid and invalid JSON, presets) as fast as they can, checking
  * each new material against the shared one and lq_last_error against the call it follows.
  *
- *   threads [N [THREADS]]      default N = 200000, THREADS = 8 (the CI size)
- *   threads 10000000 8         the full size: 8 threads x 1e7 evaluations
+ *   threads [N [THREADS [ROUNDS]]]   default N = 200000, THREADS = 8 (the CI size)
+ *   threads 10000000 8               the full size: 8 threads x 1e7 evaluations
+ *
+ * Each churn round creates one of the four shared materials (in turn) and a preset. Without
+ * ROUNDS the churn goes on while the workers run, 20 rounds at least; with ROUNDS (>= 4) each
+ * churn thread makes exactly that many, which bounds the run under valgrind: DRD runs one
+ * thread at a time, and unbounded churn (paint table builds) kept the workers waiting for
+ * 1-134 s from run to run.
  *
  * Inputs are a pure function of the element index, processed in chunks of 4096 elements
  * (every 16th chunk has 40000, so the library's own thread split, >= 32768, runs inside the
@@ -35,7 +41,7 @@ static const char *const MATERIAL_JSON[N_MATERIALS] = {
 };
 
 static lq_material *shared[N_MATERIALS];
-static size_t n_per_thread, n_chunks;
+static size_t n_per_thread, n_chunks, min_rounds = 20, max_rounds = SIZE_MAX;
 static size_t *chunk_start, *chunk_len;
 static uint64_t *reference;
 static volatile int workers_done; /* written once by main after joining the workers */
@@ -137,7 +143,8 @@ typedef struct {
     size_t created, failures;
 } churn_arg;
 
-/* Creates and frees materials until the workers are done (at least 20 rounds). */
+/* Creates and frees materials: until the workers are done and min_rounds are made, or
+ * max_rounds. */
 static void *churn(void *p) {
     churn_arg *a = p;
     float wi[3] = {0.3f, 0.2f, 0.9f}, wo[3] = {-0.4f, 0.1f, 0.8f}, f_new[3], f_shared[3];
@@ -145,7 +152,7 @@ static void *churn(void *p) {
         pthread_mutex_lock(&done_lock);
         int done = workers_done;
         pthread_mutex_unlock(&done_lock);
-        if (done && round >= 20) break;
+        if ((done && round >= min_rounds) || round >= max_rounds) break;
         int k = (int)((round + (size_t)a->id) % N_MATERIALS);
         lq_material *m = NULL;
         if (lq_material_from_json(MATERIAL_JSON[k], &m) != LQ_OK || strcmp(lq_last_error(), "") != 0) {
@@ -177,8 +184,9 @@ static double now(void) {
 int main(int argc, char **argv) {
     n_per_thread = argc > 1 ? (size_t)strtoull(argv[1], NULL, 10) : 200000;
     int n_threads = argc > 2 ? atoi(argv[2]) : 8;
-    if (n_per_thread < SMALL || n_threads < 1 || n_threads > 64) {
-        fprintf(stderr, "usage: threads [N >= %d [THREADS 1..64]]\n", SMALL);
+    if (argc > 3) min_rounds = max_rounds = (size_t)strtoull(argv[3], NULL, 10);
+    if (n_per_thread < SMALL || n_threads < 1 || n_threads > 64 || min_rounds < N_MATERIALS) {
+        fprintf(stderr, "usage: threads [N >= %d [THREADS 1..64 [ROUNDS >= %d]]]\n", SMALL, N_MATERIALS);
         return 2;
     }
     for (int k = 0; k < N_MATERIALS; k++) {

@@ -4,7 +4,7 @@ use crate::material::{lq_material, material};
 use crate::status::{guard, lq_status, Failure};
 use crate::strings::{c_str, out_string};
 use lacquer_core::check::{self, CheckConfig};
-use lacquer_core::{models, presets, Material};
+use lacquer_core::{models, presets};
 use serde_json::{json, Value};
 use std::ffi::c_char;
 
@@ -61,7 +61,7 @@ pub unsafe extern "C" fn lq_presets_json(out_json: *mut *mut c_char) -> lq_statu
         let list: Vec<Value> = presets::PRESETS
             .iter()
             .map(|p| {
-                let material = Material::from_json(p.json).map(|m| m.to_json()).unwrap_or(Value::Null);
+                let material = p.material_json().unwrap_or(Value::Null);
                 json!({"name": p.name, "description": p.description, "material": material})
             })
             .collect();

@@ -14,6 +14,12 @@ use crate::presets;
 use crate::real::Real;
 use serde_json::Value;
 
+/// What a material JSON names: a preset, or a model with its validated parameters.
+enum Parsed<'a> {
+    Preset(&'a str),
+    Model(&'static ModelInfo, Params),
+}
+
 /// A reflectance model with validated parameters. Immutable and `Sync`: share it freely.
 #[derive(Clone, Debug)]
 pub struct Material {
@@ -55,13 +61,36 @@ impl Material {
 
     /// Builds a material from parsed JSON.
     pub fn from_value(v: &Value) -> Result<Self, Error> {
+        match Self::parse_value(v)? {
+            Parsed::Preset(name) => Self::preset(name),
+            Parsed::Model(info, params) => Self::from_params(info, params),
+        }
+    }
+
+    /// The complete JSON (every parameter, defaults filled in) of the material `v` describes,
+    /// as [`Material::to_json`] of the built material gives it, without building it: a paint's
+    /// layer tables cost tens of milliseconds, which a host listing presets or normalising a
+    /// material file need not pay. Every parameter is checked (names, types, ranges); checks
+    /// that need the built model (e.g. `rough_plastic`'s distinct indices) are not made.
+    pub fn canonical_json(v: &Value) -> Result<Value, Error> {
+        match Self::parse_value(v)? {
+            Parsed::Preset(name) => {
+                let p = presets::find(name).ok_or_else(|| Error::UnknownPreset { name: name.to_string() })?;
+                p.material_json()
+            }
+            Parsed::Model(_, params) => Ok(params.to_json()),
+        }
+    }
+
+    /// The model and its validated parameters, or the preset, that `v` names.
+    fn parse_value(v: &Value) -> Result<Parsed<'_>, Error> {
         let obj = v.as_object().ok_or_else(|| Error::Shape("expected a JSON object".into()))?;
         if let Some(p) = obj.get("preset") {
             let name = p.as_str().ok_or_else(|| Error::WrongType { param: "preset".into(), expected: "a string" })?;
             if obj.len() > 1 {
                 return Err(Error::Shape("{\"preset\": ...} takes no other keys".into()));
             }
-            return Self::preset(name);
+            return Ok(Parsed::Preset(name));
         }
         let name = obj
             .get("model")
@@ -73,7 +102,7 @@ impl Material {
             known: models::all().iter().map(|m| m.name).collect(),
         })?;
         let params = Params::parse(info.name, info.params, obj)?;
-        Self::from_params(info, params)
+        Ok(Parsed::Model(info, params))
     }
 
     /// Builds a named preset.

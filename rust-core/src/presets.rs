@@ -127,8 +127,55 @@ pub const PRESETS: &[Preset] = &[
     },
 ];
 
+impl Preset {
+    /// The preset's complete material JSON (every parameter), as `to_json` of the built
+    /// material gives it, without building the material (see [`crate::Material::canonical_json`]).
+    pub fn material_json(&self) -> Result<serde_json::Value, crate::Error> {
+        let v: serde_json::Value = serde_json::from_str(self.json).map_err(|e| crate::Error::Json(e.to_string()))?;
+        crate::Material::canonical_json(&v)
+    }
+}
+
 /// Looks a preset up by name.
 #[must_use]
 pub fn find(name: &str) -> Option<&'static Preset> {
     PRESETS.iter().find(|p| p.name == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Material;
+    use serde_json::{json, Value};
+
+    /// The listing's JSON comes from the parameters alone; the built material (the other path)
+    /// must say the same, for the preset's JSON and for `{"preset": name}`.
+    #[test]
+    fn material_json_is_the_built_materials_json() {
+        for p in PRESETS {
+            let built = Material::from_json(p.json).unwrap().to_json();
+            assert_eq!(p.material_json().unwrap(), built, "{}", p.name);
+            assert_eq!(Material::canonical_json(&json!({ "preset": p.name })).unwrap(), built, "{}", p.name);
+        }
+    }
+
+    /// Without the build, the parameter checks still run: the same errors as `from_value`.
+    #[test]
+    fn canonical_json_rejects_what_building_rejects() {
+        for bad in [
+            r#"{"model": "lambert", "albedo": -0.5}"#,
+            r#"{"model": "lambert", "roughness": 0.1}"#,
+            r#"{"model": "coated_paint", "coat_ior": "1.5"}"#,
+            r#"{"model": "nope"}"#,
+            r#"{"preset": "nope"}"#,
+            r#"{"preset": "gold_flake_8", "coat_ior": 1.5}"#,
+            r#"{"albedo": 0.5}"#,
+            "[1]",
+        ] {
+            let v: Value = serde_json::from_str(bad).unwrap();
+            let canonical = Material::canonical_json(&v).unwrap_err().to_string();
+            let built = Material::from_value(&v).unwrap_err().to_string();
+            assert_eq!(canonical, built, "{bad}");
+        }
+    }
 }

@@ -309,7 +309,7 @@ fn list_presets(as_json: bool) -> ExitCode {
         let list: Vec<Value> = presets::PRESETS
             .iter()
             .map(|p| {
-                let material = Material::from_json(p.json).map(|m| m.to_json()).unwrap_or(Value::Null);
+                let material = p.material_json().unwrap_or(Value::Null);
                 json!({"name": p.name, "label": p.label, "description": p.description, "material": material})
             })
             .collect();

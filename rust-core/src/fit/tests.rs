@@ -82,8 +82,19 @@ fn every_model_refits_a_table_of_its_own() {
             model = FitModel::parse(&Value::Object(obj).to_string()).unwrap();
         }
         let data = FitData::from_merl(&tabulate(&truth));
+        // Six starts, two refinements, also for the slow model: coated_paint reached SNR 36.2 dB
+        // in 70.6 s of this test's ≈ 98 s; with two starts and one refinement (41 s) it stopped
+        // at 21.3 dB (coat_ior 1.75 for 1.45), below the 30 dB the test asks (session 16).
         let opts = FitOptions { points: 4_000, coarse_points: 800, starts: 6, ..FitOptions::default() };
-        match fit(&model, &data, &opts) {
+        let result = fit(&model, &data, &opts);
+        if let Ok(r) = &result {
+            // Per model (`-- --nocapture`): what the fit cost and reached.
+            eprintln!(
+                "{}: SNR {:.1} dB, {} starts, {} iterations ({} total), {} evaluations, {:.1} s",
+                info.name, r.metrics.snr_db_mean, r.starts, r.iterations, r.total_iterations, r.evaluations, r.seconds
+            );
+        }
+        match result {
             Ok(r) if r.metrics.snr_db_mean >= 30.0 => {}
             Ok(r) => failures.push(format!(
                 "{}: SNR {:.1} dB, truth {:?}, fitted {:?}",
