@@ -23,7 +23,8 @@ for a in "$@"; do
   esac
 done
 seconds="${LACQUER_FUZZ_SECONDS:-10}"
-targets=(material_json merl_table render_scene capi_calls)
+# Longest corpus replay first, so that side by side (below) the short ones fill in at the end.
+targets=(capi_calls material_json render_scene merl_table)
 
 if ! rustup run nightly rustc --version >/dev/null 2>&1; then
   echo "fuzz/smoke.sh: the nightly toolchain is missing; installing it (rustup toolchain install nightly)"
@@ -49,24 +50,46 @@ if [ "$build_only" = 1 ]; then
 fi
 work="$(mktemp -d "${TMPDIR:-/tmp}/lacquer-fuzz-smoke.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
-for t in "${targets[@]}"; do
-  echo "=== fuzz $t: $seconds s"
-  mkdir -p "$work/$t"
-  # One process on one core (no -jobs: libFuzzer would fork and log to files); the first
-  # corpus directory (writable) is the temporary one.
-  rc=0
+# The targets run side by side, LACQUER_FUZZ_JOBS at a time (default: the number of cores):
+# each is one libFuzzer process on one core (no -jobs: libFuzzer would fork and log to files),
+# and most of a target's time is the replay of its committed corpus under ASan, so on two cores
+# two at a time halves the step (docs/reliability.md, "CI duration, eighth pass").
+jobs="${LACQUER_FUZZ_JOBS:-$(nproc 2>/dev/null || echo 1)}"
+[ "$jobs" -ge 1 ] 2>/dev/null || { echo "fuzz/smoke.sh: LACQUER_FUZZ_JOBS must be a positive integer, got '$jobs'" >&2; exit 2; }
+run_target() { # run_target T: fuzz target T for $seconds; its exit status goes to $work/T.rc
+  local t="$1" rc=0
+  mkdir -p "$work/$t" "$work/$t-artifacts"
+  # The first corpus directory (writable) is the temporary one.
   cargo +nightly fuzz run "$t" "$work/$t" "corpus/$t" -- \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
-    -print_final_stats=1 -artifact_prefix="$work/" >"$work/$t.log" 2>&1 || rc=$?
+    -print_final_stats=1 -artifact_prefix="$work/$t-artifacts/" >"$work/$t.log" 2>&1 || rc=$?
+  echo "$rc" >"$work/$t.rc"
+}
+running=0
+for t in "${targets[@]}"; do
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || true  # one target finished (its status is in its .rc file)
+    running=$((running - 1))
+  fi
+  echo "=== fuzz $t: $seconds s"
+  run_target "$t" &
+  running=$((running + 1))
+done
+wait
+failed=0
+for t in "${targets[@]}"; do
+  echo "=== fuzz $t"
+  rc="$(cat "$work/$t.rc" 2>/dev/null || echo 'no status')"
   grep -E '^(Done [0-9]+ runs|stat::number_of_executed_units|stat::peak_rss_mb)' "$work/$t.log" || true
   runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$t.log" | tail -1)"
   if [ "$rc" != 0 ] || [ -z "$runs" ] || [ "$runs" = 0 ]; then
     tail -40 "$work/$t.log" >&2
     echo "fuzz/smoke.sh: $t failed (exit $rc, ${runs:-no} executions)" >&2
     mkdir -p "$here/artifacts/$t"
-    cp "$work"/crash-* "$work"/timeout-* "$work"/oom-* "$work"/leak-* "$here/artifacts/$t/" 2>/dev/null || true
+    cp "$work/$t-artifacts"/* "$here/artifacts/$t/" 2>/dev/null || true
     echo "reproduce: cargo +nightly fuzz run $t fuzz/artifacts/$t/<file>" >&2
-    exit 1
+    failed=$((failed + 1))
   fi
 done
+[ "$failed" = 0 ] || { echo "fuzz: $((${#targets[@]} - failed)) passed, $failed failed" >&2; exit 1; }
 echo "fuzz: ${#targets[@]} passed, 0 failed"
