@@ -332,12 +332,40 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
 /// Beckmann's Λ from `cos θ` and `α² sin² θ` (> 0): with `a = 1/(α tan θ)`,
 /// `Λ = (e^{−a²}/(a√π) − erfc(a))/2` (0 beyond `a = 26`). `erfc` is `special::erfc` in the
 /// scalar paths and the f32 polynomial in SIMD lanes ([`lanes::erfc`]).
+///
+/// When every lane has `a` ≥ [`beckmann_lambda_negligible_from`] (Λ below a quarter of the
+/// precision's epsilon: 1 + Λi + Λo rounds to 1) it returns 0 without the `exp` and `erfc`:
+/// every use of Λ here is `1 + Λ` or `1 + Λi + Λo`, which then come out bit for bit as with
+/// the full formula. Flakes seen through a coat are the common case: `gold_flake_8`'s flakes
+/// (α = tan 12°) under η 1.5 have `a` ≥ 5.3 for every refracted direction.
 #[inline(always)]
 fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
     let a = cos_theta / lanes::sqrt(a2_sin2);
+    if gt(a, T::c(beckmann_lambda_negligible_from::<T::Elem>())).all() {
+        return T::c(0.0);
+    }
+    beckmann_lambda_of_a(a)
+}
+
+/// Beckmann's Λ from `a = 1/(α tan θ)` (> 0) by the full formula (no shortcut).
+#[inline(always)]
+fn beckmann_lambda_of_a<T: Lanes>(a: T) -> T {
     let inv_sqrt_pi = T::c(0.5 * std::f64::consts::FRAC_2_SQRT_PI);
     let l = lanes::max(lanes::exp(-a * a) * inv_sqrt_pi / a - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
     keep(le(a, T::c(26.0)), l)
+}
+
+/// The `a = 1/(α tan θ)` from which Beckmann's Λ is below a quarter of `E`'s epsilon (so that
+/// `1 + Λi + Λo` rounds to 1): 3.5 for `f32` (Λ(3.5) = 1.41e-8 < 2⁻²³/4 = 2.98e-8) and 5.8 for
+/// `f64` (Λ(5.8) = 1.70e-18 < 2⁻⁵²/4 = 5.55e-17); Λ decreases with `a`. Values from mpmath at
+/// 50 digits; test `beckmann_lambda_is_negligible_from_its_threshold`.
+#[inline(always)]
+fn beckmann_lambda_negligible_from<E: Real>() -> f64 {
+    if <E as num_traits::Float>::epsilon().f64() > 1e-10 {
+        3.5
+    } else {
+        5.8
+    }
 }
 
 impl<T: Real> Microfacet<T> {
@@ -518,6 +546,69 @@ mod tests {
         let w = spherical_direction(0.6f64, 0.8, 1.1);
         let expect = (-1.0 + (1.0 + 0.09 * (0.36 / 0.64f64)).sqrt()) / 2.0;
         assert!((mf.lambda(w) - expect).abs() < 1e-15);
+    }
+
+    /// The shortcut of `beckmann_lambda` (0 when every lane's `a` is past the threshold) gives
+    /// `G1` and the height-correlated `G2` bit for bit as the full formula, in f64, f32 and
+    /// every SIMD type this CPU has, for `a` from the threshold to 40; and the threshold's Λ
+    /// (mpmath, 50 digits: Λ(3.5) = 1.4124e-8, Λ(5.8) = 1.702e-18) is what the full formula
+    /// computes there and below a quarter of the precision's epsilon.
+    #[test]
+    fn beckmann_lambda_is_negligible_from_its_threshold() {
+        fn check<L: Lanes>() {
+            let a0 = beckmann_lambda_negligible_from::<L::Elem>();
+            let eps = <L::Elem as num_traits::Float>::epsilon().f64();
+            let golden = if eps > 1e-10 { 1.4124e-8 } else { 1.702e-18 };
+            assert!(golden < eps / 4.0, "threshold {a0}: Λ {golden} ≥ ε/4");
+            let full = beckmann_lambda_of_a(L::c(a0)).lane(0).f64();
+            assert!((full - golden).abs() < 1e-3 * golden + 1e-3 * eps, "Λ({a0}) = {full}, mpmath {golden}");
+            let alpha = 0.2;
+            let mf = Microfacet::new(DistributionKind::Beckmann, L::c(alpha), L::c(alpha));
+            let up = Vec3::new(L::c(0.0), L::c(0.0), L::c(1.0));
+            for k in 0..2000 {
+                // a = 1/(α tan θ) from a0 to 40, lane j a little further on.
+                let a = |j: usize| a0 + (40.0 - a0) * ((k * L::WIDTH + j) as f64 / (2000 * L::WIDTH) as f64).powi(2);
+                let w = |shift: f64| {
+                    let tan = L::from_fn(|j| L::Elem::of(1.0 / (alpha * (a(j) + shift))));
+                    let cos = L::c(1.0) / lanes::sqrt(L::c(1.0) + tan * tan);
+                    Vec3::new(tan * cos, L::c(0.0), cos)
+                };
+                let (wi, wo) = (w(0.0), w(0.5));
+                let lambda_full = |v: Vec3<L>| beckmann_lambda_of_a(v.z / lanes::sqrt(sqr(L::c(alpha) * v.x)));
+                let g1_full = L::c(1.0) / (L::c(1.0) + lambda_full(wi));
+                let g2_full = L::c(1.0) / (L::c(1.0) + lambda_full(wi) + lambda_full(wo));
+                let g1 = mf.g1(wi, up);
+                let g2 = L::c(1.0) / (L::c(1.0) + mf.lambda(wi) + mf.lambda(wo));
+                for j in 0..L::WIDTH {
+                    let bits = |x: L| x.lane(j).f64().to_bits();
+                    assert_eq!(bits(g1), bits(g1_full), "G1 at a = {}: {:?}", a(j), g1.lane(j));
+                    assert_eq!(bits(g2), bits(g2_full), "G2 at a = {}: {:?}", a(j), g2.lane(j));
+                }
+            }
+        }
+        check::<f64>();
+        check::<f32>();
+        #[cfg(target_arch = "x86_64")]
+        {
+            use crate::batch::SimdLevel;
+            use crate::lanes::x86::{F32x16, F32x8};
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2() {
+                check::<F32x8>();
+            }
+            #[target_feature(enable = "avx512f")]
+            fn avx512() {
+                check::<F32x16>();
+            }
+            if SimdLevel::Avx2.supported() {
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                unsafe { avx2() };
+            }
+            if SimdLevel::Avx512.supported() {
+                // SAFETY: the CPU has AVX-512F (checked above).
+                unsafe { avx512() };
+            }
+        }
     }
 
     #[test]
