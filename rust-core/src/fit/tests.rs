@@ -37,9 +37,12 @@ fn ward_parameters_are_recovered() {
 fn every_model_refits_a_table_of_its_own() {
     // For every registered model: a table generated at parameters away from its defaults is
     // fitted back by the same model (multi-start from the defaults and Halton points), to the
-    // stated tolerance in BRDF space: SNR ≥ 30 dB on the whole table. Models whose material
-    // takes over 2 ms to build (coated paint) fit their first colour and first two scalar
-    // parameters, the others held at the truth, to keep the test short.
+    // stated tolerance in BRDF space: SNR ≥ 30 dB on the whole table. The coated paint, whose
+    // material builds its layer tables (242 ms per build at 30 % of the parameter ranges,
+    // release, session 17; the next slowest, principled, 0.37 ms, the others below 0.01 ms),
+    // fits its first colour and first two scalar parameters, the others held at the truth, to
+    // keep the test short. Chosen by name, not by timing a build (which a loaded machine could
+    // push across a threshold: a different test from run to run).
     let mut failures = Vec::new();
     for info in fittable_models() {
         let mut model = FitModel::parse(info.name).unwrap();
@@ -64,16 +67,11 @@ fn every_model_refits_a_table_of_its_own() {
                 })
                 .collect()
         };
-        let (truth_z, truth) = [0.0, 0.05]
+        let truth = [0.0, 0.05]
             .iter()
-            .find_map(|&spread| {
-                let z = truth_at(spread);
-                model.materials(&z).ok().map(|m| (z, m))
-            })
+            .find_map(|&spread| model.materials(&truth_at(spread)).ok())
             .unwrap_or_else(|| panic!("{}: the truth parameters do not build", info.name));
-        let t = Instant::now();
-        let _ = model.materials(&truth_z);
-        if t.elapsed().as_secs_f64() > 2e-3 {
+        if info.name == "coated_paint" {
             let mut obj = truth[0].to_json().as_object().unwrap().clone();
             let colour = info.params.iter().find(|p| p.kind == ParamKind::Color).map(|p| p.name);
             let scalars: Vec<&str> =
