@@ -3,6 +3,7 @@
 # LACQUER_FUZZ_SECONDS (default 10 s, so ~40 s of fuzzing in total) from its committed corpus
 # (fuzz/corpus/<target>, read only: new inputs go to a temporary directory), with hangs
 # (-timeout) and allocation blow-ups (-rss_limit_mb, -malloc_limit_mb) counted as failures.
+# The targets run side by side, LACQUER_FUZZ_JOBS at a time (default: the number of cores).
 # Any crash, hang or leak fails the script; libFuzzer's reproducer is printed.
 #
 # Needs the nightly toolchain and cargo-fuzz. No silent skip: it installs cargo-fuzz (crates.io,

@@ -589,26 +589,7 @@ mod tests {
         check::<f64>();
         check::<f32>();
         #[cfg(target_arch = "x86_64")]
-        {
-            use crate::batch::SimdLevel;
-            use crate::lanes::x86::{F32x16, F32x8};
-            #[target_feature(enable = "avx2,fma")]
-            fn avx2() {
-                check::<F32x8>();
-            }
-            #[target_feature(enable = "avx512f")]
-            fn avx512() {
-                check::<F32x16>();
-            }
-            if SimdLevel::Avx2.supported() {
-                // SAFETY: the CPU has AVX2 and FMA (checked above).
-                unsafe { avx2() };
-            }
-            if SimdLevel::Avx512.supported() {
-                // SAFETY: the CPU has AVX-512F (checked above).
-                unsafe { avx512() };
-            }
-        }
+        crate::lanes::x86::check_each_simd_type!(check);
     }
 
     #[test]

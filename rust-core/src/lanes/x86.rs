@@ -639,10 +639,36 @@ const INTERLEAVE: [[[i32; 16]; 2]; 3] = {
     t
 };
 
+/// Test helper: calls the generic function `$check::<L>()` for every SIMD lane type this CPU
+/// has ([`F32x8`] with AVX2 + FMA, [`F32x16`] with AVX-512F), each inside a function compiled
+/// with that target feature.
+#[cfg(test)]
+macro_rules! check_each_simd_type {
+    ($check:ident) => {{
+        #[target_feature(enable = "avx2,fma")]
+        fn avx2() {
+            $check::<$crate::lanes::x86::F32x8>();
+        }
+        #[target_feature(enable = "avx512f")]
+        fn avx512() {
+            $check::<$crate::lanes::x86::F32x16>();
+        }
+        if $crate::batch::SimdLevel::Avx2.supported() {
+            // SAFETY: the CPU has AVX2 and FMA (checked above).
+            unsafe { avx2() };
+        }
+        if $crate::batch::SimdLevel::Avx512.supported() {
+            // SAFETY: the CPU has AVX-512F (checked above).
+            unsafe { avx512() };
+        }
+    }};
+}
+#[cfg(test)]
+pub(crate) use check_each_simd_type;
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::batch::SimdLevel;
 
     /// The interleaved loads and stores against the lane-by-lane definition: every
     /// component of every element lands in its lane, and storing gives the array back.
@@ -664,23 +690,8 @@ mod tests {
             assert_eq!(dst[..3 * w], src[..], "width {w}");
             assert!(dst[3 * w].is_nan(), "wrote past 3·WIDTH");
         }
-        #[target_feature(enable = "avx2,fma")]
-        fn avx2() {
-            check::<F32x8>();
-        }
-        #[target_feature(enable = "avx512f")]
-        fn avx512() {
-            check::<F32x16>();
-        }
         check::<f32>();
-        if SimdLevel::Avx2.supported() {
-            // SAFETY: the CPU has AVX2 and FMA (checked above).
-            unsafe { avx2() };
-        }
-        if SimdLevel::Avx512.supported() {
-            // SAFETY: the CPU has AVX-512F (checked above).
-            unsafe { avx512() };
-        }
+        check_each_simd_type!(check);
     }
 
     /// Largest error of the lane `exp` and `sin`/`cos` polynomials against f64 `std`, in every
@@ -714,21 +725,6 @@ mod tests {
             assert_eq!((e.lane(0), e.lane(1), e.lane(3)), (0.0, f32::INFINITY, 1.0));
             assert!(e.lane(2).is_nan());
         }
-        #[target_feature(enable = "avx2,fma")]
-        fn avx2() {
-            check::<F32x8>();
-        }
-        #[target_feature(enable = "avx512f")]
-        fn avx512() {
-            check::<F32x16>();
-        }
-        if SimdLevel::Avx2.supported() {
-            // SAFETY: the CPU has AVX2 and FMA (checked above).
-            unsafe { avx2() };
-        }
-        if SimdLevel::Avx512.supported() {
-            // SAFETY: the CPU has AVX-512F (checked above).
-            unsafe { avx512() };
-        }
+        check_each_simd_type!(check);
     }
 }
