@@ -335,8 +335,9 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
 ///
 /// When every lane has `a` ≥ [`beckmann_lambda_negligible_from`] (Λ below a quarter of the
 /// precision's epsilon: 1 + Λi + Λo rounds to 1) it returns 0 without the `exp` and `erfc`:
-/// every use of Λ here is `1 + Λ` or `1 + Λi + Λo`, which then come out bit for bit as with
-/// the full formula. Flakes seen through a coat are the common case: `gold_flake_8`'s flakes
+/// every use of Beckmann's Λ in the crate is `1 + Λ` or `1 + Λi + Λo` (`g1`, `g`,
+/// `g1_either_side`; the raw Λ in `paint::rough_dielectric` and `paint::coat` is GGX's), which
+/// then come out bit for bit as with the full formula. Flakes seen through a coat are the common case: `gold_flake_8`'s flakes
 /// (α = tan 12°) under η 1.5 have `a` ≥ 5.3 for every refracted direction.
 #[inline(always)]
 fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
