@@ -733,8 +733,9 @@ lq_status lq_sample_soa(const lq_material *m,
                         uint32_t *flags);
 
 /**
- * Limits the threads a large batch call (n ≥ 32768) uses: 1 runs every call on the calling
- * thread, 0 (the default) uses every core. Process-wide; results do not depend on it.
+ * Limits the threads a large batch call (n ≥ 32768) uses, and those a paint material's
+ * creation samples its layer tables on: 1 runs every call and creation on the calling thread,
+ * 0 (the default) uses every core. Process-wide; results do not depend on it.
  */
 void lq_set_thread_count(uint32_t n);
 

@@ -1312,8 +1312,9 @@ pub unsafe extern "C" fn lq_sample_soa(
     })
 }
 
-/// Limits the threads a large batch call (n ≥ 32768) uses: 1 runs every call on the calling
-/// thread, 0 (the default) uses every core. Process-wide; results do not depend on it.
+/// Limits the threads a large batch call (n ≥ 32768) uses, and those a paint material's
+/// creation samples its layer tables on: 1 runs every call and creation on the calling thread,
+/// 0 (the default) uses every core. Process-wide; results do not depend on it.
 #[no_mangle]
 pub extern "C" fn lq_set_thread_count(n: u32) {
     guard_value((), || lacquer_core::batch::set_thread_count(n as usize));

@@ -128,7 +128,8 @@ pub fn set_simd_level(level: SimdLevel) -> bool {
 static THREADS: AtomicUsize = AtomicUsize::new(0);
 static POOL: Mutex<Option<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
 
-/// Limits the threads a large batch uses: 1 runs every batch on the calling thread; 0 (the
+/// Limits the threads a large batch uses, and those a material build samples its tables on
+/// (the paint's layer tables): 1 runs every batch and build on the calling thread; 0 (the
 /// default) uses every core.
 pub fn set_thread_count(n: usize) {
     THREADS.store(n, Ordering::Relaxed);

@@ -44,6 +44,7 @@ pub mod measured;
 pub mod microfacet;
 pub mod models;
 pub mod paint;
+mod parallel;
 pub mod params;
 pub mod presets;
 pub mod quadrature;

@@ -925,11 +925,29 @@ fn base_sample_terms(
     let a_v = coat.attenuation(s.wi.z);
     let escape = coat.refract_out(s.wi).map_or(0.0, |v| coat.transmittance(v.z));
     let split = coat.has_crossing() && base.flakes.is_some();
-    let fb = if spec_series || split { base.eval(s.wi, w_in) } else { Rgb::zero() };
+    // `f_b` and the two components whose shares are needed, each lobe evaluated once: `f_b`
+    // is summed as `Basecoat::eval` sums it (pigment, + metal, + flakes), so it is the same
+    // value bit for bit.
+    let (metal, flakes) = if spec_series || split {
+        (base.metal_eval(s.wi, w_in), base.flakes_eval(s.wi, w_in, 1.0, 1.0))
+    } else {
+        (Rgb::zero(), Rgb::zero())
+    };
+    let fb = if spec_series || split {
+        let mut fb = base.eval_parts(s.wi, w_in, 1.0, 1.0, BaseParts { pigment: true, glossy: false });
+        if base.metal.is_some() {
+            fb += metal;
+        }
+        if base.flakes.is_some() {
+            fb += flakes;
+        }
+        fb
+    } else {
+        Rgb::zero()
+    };
     let share = |f: Rgb<f64>| [0, 1, 2].map(|c| if fb[c] > 0.0 { (f[c] / fb[c]).clamp(0.0, 1.0) } else { 0.0 });
-    let metal_share = if spec_series { share(base.metal_eval(s.wi, w_in)) } else { [0.0; 3] };
-    let (escape_flakes, flake_share) =
-        if split { (coat.escape(s.wi), share(base.flakes_eval(s.wi, w_in, 1.0, 1.0))) } else { (escape, [0.0; 3]) };
+    let metal_share = if spec_series { share(metal) } else { [0.0; 3] };
+    let (escape_flakes, flake_share) = if split { (coat.escape(s.wi), share(flakes)) } else { (escape, [0.0; 3]) };
     Some(BaseSampleTerms {
         up: [0, 1, 2].map(|c| s.weight[c] * a_v[c]),
         escape,
@@ -983,9 +1001,9 @@ fn layer_tables(coat: &Coat, base: &Basecoat, spec_series: bool) -> (MuTable, Mu
         }
     });
 
-    let mut single = Vec::with_capacity(TABLE_NODES);
-    let mut multiple = Vec::with_capacity(TABLE_NODES);
-    for k in 0..TABLE_NODES {
+    // The nodes are independent: they run on up to `batch::thread_count()` threads, each node
+    // summing its samples in the same order as on one thread (the same tables, bit for bit).
+    let nodes = crate::parallel::map_indices(TABLE_NODES, |k| {
         let mu = (k as f64 / (TABLE_NODES - 1) as f64).max(1e-4);
         let w = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
         // What enters (T) and the flakes' crossing factor (g ≤ T; g = T for a smooth coat):
@@ -1012,14 +1030,15 @@ fn layer_tables(coat: &Coat, base: &Basecoat, spec_series: bool) -> (MuTable, Mu
         let norm = n as f64;
         let a1: [f64; 3] = [0, 1, 2].map(|c| (t_w * a_w[c] * out[c] + g_w * a_w[c] * out_flakes[c]) / norm);
         let u: [f64; 3] = [0, 1, 2].map(|c| t_w * a_w[c] * up[c] / norm);
-        single.push(a1);
-        multiple.push(if spec_series {
+        let m = if spec_series {
             // What the pigment and the flakes send back down, `R − R_spec` (each term ≥ 0).
             [0, 1, 2].map(|c| bounce[c] * t_w * a_w[c] * rest[c] / norm)
         } else {
             [0, 1, 2].map(|c| (bounce[c] * (u[c] - a1[c])).max(0.0))
-        });
-    }
+        };
+        (a1, m)
+    });
+    let (single, multiple): (Vec<_>, Vec<_>) = nodes.into_iter().unzip();
     (MuTable::from_values(single), MuTable::from_values(multiple))
 }
 

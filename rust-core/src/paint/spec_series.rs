@@ -151,46 +151,48 @@ impl SpecSeries {
             let metal = MetalBase { alpha: metal_alpha, f0: [f0; 3], weight: 1.0 };
             let base = Basecoat::new([0.0; 3], 0.0, 0.0, None, Some(metal.clone()), None).with_blur(blur);
             // R_F(μ): what the coat sends back down after the first base bounce.
-            let mut r = vec![0.0; NODES];
-            for (k, &(mu, w_in)) in nodes.iter().enumerate() {
+            // The nodes are independent (each sums its own samples in order, `later_bounces`
+            // seeds its own generator): they run on up to `batch::thread_count()` threads.
+            let r: Vec<f64> = crate::parallel::map_indices(NODES, |k| {
+                let (mu, w_in) = nodes[k];
                 let t = coat.transmittance(mu);
+                let mut r = 0.0;
                 for u in &points {
                     if let Some(b) = base.sample_by(w_in, *u, FlakeSampler::Visible) {
-                        r[k] += t * b.weight[0] * (1.0 - escape(b.wi)) / SAMPLES as f64;
+                        r += t * b.weight[0] * (1.0 - escape(b.wi)) / SAMPLES as f64;
                     }
                 }
-            }
+                r
+            });
             if c == 0 {
                 let inside_escape = coat.inside_escape_table();
-                n_eff = nodes.iter().map(|&(_, w_in)| later_bounces(&base, coat, &inside_escape, w_in)).collect();
+                n_eff = crate::parallel::map_indices(NODES, |k| later_bounces(&base, coat, &inside_escape, nodes[k].1));
             }
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
             // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
             // node's samples of the widened lobe are drawn and evaluated once, at unit weight:
             // per sample `f₁ cos θi / pdf · escape` and the exit's `μ`; the fixed-point rounds
             // below only reweight them.
-            let unit_samples: Vec<Vec<(f64, f64)>> = nodes
-                .iter()
-                .map(|&(mu, w_in)| {
-                    if coat.transmittance(mu) <= 0.0 {
-                        return Vec::new();
-                    }
-                    let wide = metal.blurred::<f64>(added(w_in.z));
-                    points
-                        .iter()
-                        .filter_map(|u| {
-                            let wi = MetalBase::sample_direction_with(&wide, w_in, u[1], u[2]);
-                            let pdf = MetalBase::pdf_with(&wide, wi, w_in);
-                            if wi.z <= 0.0 || !(pdf > 0.0) {
-                                return None;
-                            }
-                            let added = (added(wi.z), added(w_in.z));
-                            let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (1.0, 1.0), None);
-                            Some((mu_out(wi), f.r * wi.z / pdf * escape(wi)))
-                        })
-                        .collect()
-                })
-                .collect();
+            let unit_samples: Vec<Vec<(f64, f64)>> = crate::parallel::map_indices(NODES, |k| {
+                let (mu, w_in) = nodes[k];
+                if coat.transmittance(mu) <= 0.0 {
+                    return Vec::new();
+                }
+                let wide = metal.blurred::<f64>(added(w_in.z));
+                points
+                    .iter()
+                    .filter_map(|u| {
+                        let wi = MetalBase::sample_direction_with(&wide, w_in, u[1], u[2]);
+                        let pdf = MetalBase::pdf_with(&wide, wi, w_in);
+                        if wi.z <= 0.0 || !(pdf > 0.0) {
+                            return None;
+                        }
+                        let added = (added(wi.z), added(w_in.z));
+                        let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (1.0, 1.0), None);
+                        Some((mu_out(wi), f.r * wi.z / pdf * escape(wi)))
+                    })
+                    .collect()
+            });
             let albedo_with = |w: &[f64]| -> Vec<f64> {
                 let table = MuTable::from_values(w.iter().map(|&x| [x, 0.0, 0.0]).collect());
                 let at = |mu: f64| table.eval::<f64>(mu)[0];
