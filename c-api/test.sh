@@ -134,7 +134,7 @@ if [ "$skip_valgrind" = 0 ]; then
     # created once per churn thread: DRD runs one thread at a time, and unbounded churn made
     # this step take 61-145 s); any reported conflict fails the step.
     step "valgrind --tool=drd threads (4 threads x 4096, 4 churn rounds)" \
-        valgrind -q --tool=drd --error-exitcode=1 "$bin/threads" 4096 4 4
+        valgrind -q --tool=drd --error-exitcode=1 --suppressions="$here/valgrind.supp" "$bin/threads" 4096 4 4
 fi
 
 # --- 5. Python wheel and pytest -------------------------------------------------------------------
