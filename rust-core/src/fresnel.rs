@@ -6,6 +6,8 @@
 
 use crate::lanes::{self, Lanes};
 use crate::math::Rgb;
+use crate::poly_fit::MuPolyFit;
+use std::sync::Arc;
 use crate::real::Real;
 
 /// Unpolarised Fresnel reflectance of a dielectric interface.
@@ -160,6 +162,55 @@ fn conductor_formula<T: Lanes>(cos_i: T, eta: T, k: T) -> T {
 #[must_use]
 pub fn conductor_rgb<T: Lanes>(cos_i: T, eta: Rgb<T>, k: Rgb<T>) -> Rgb<T> {
     Rgb::new(conductor(cos_i, eta.r, k.r), conductor(cos_i, eta.g, k.g), conductor(cos_i, eta.b, k.b))
+}
+
+/// The conductor Fresnel of one material (`η + i·k` per RGB channel) as models hold it: the
+/// exact [`conductor_rgb`], and for lanes with register lookups (AVX-512) its measured
+/// [`MuPolyFit`] — 6 permutes and 5 FMAs per channel instead of 2 square roots and 2
+/// divisions. The f64 reference and scalar f32 paths always take the exact formula; a
+/// material whose fit misses [`crate::poly_fit::FIT_TOLERANCE`] (an index-matched or
+/// nearly matched interface) takes it everywhere.
+#[derive(Clone, Debug)]
+pub struct ConductorFresnel {
+    /// Real part of the IOR per channel.
+    pub eta: [f64; 3],
+    /// Imaginary part of the IOR per channel.
+    pub k: [f64; 3],
+    fit: Option<Arc<MuPolyFit>>,
+}
+
+impl ConductorFresnel {
+    /// The Fresnel of `η + i·k`, with its fit when the fit is within tolerance.
+    #[must_use]
+    pub fn new(eta: [f64; 3], k: [f64; 3]) -> Self {
+        let fit = MuPolyFit::new(|mu| [0, 1, 2].map(|c| conductor(mu, eta[c], k[c]))).map(Arc::new);
+        Self { eta, k, fit }
+    }
+
+    /// The same material without the fit: every path evaluates the exact formula (for
+    /// measuring what the fit saves and costs).
+    #[must_use]
+    pub fn exact_only(&self) -> Self {
+        Self { fit: None, ..self.clone() }
+    }
+
+    /// The fit's measured largest relative error, or `None` when the exact formula is used.
+    #[must_use]
+    pub fn fit_error(&self) -> Option<f64> {
+        self.fit.as_ref().map(|f| f.max_relative_error())
+    }
+
+    /// Reflectance per channel at incidence `cos_i` (clamped to `[0, 1]`).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval<L: Lanes>(&self, cos_i: L) -> Rgb<L> {
+        if L::REGISTER_LOOKUP {
+            if let Some(fit) = &self.fit {
+                return fit.eval_lanes(cos_i);
+            }
+        }
+        conductor_rgb(cos_i, Rgb::from_array(self.eta), Rgb::from_array(self.k))
+    }
 }
 
 /// A measured metal: complex IOR per RGB channel, relative to air.

@@ -46,6 +46,7 @@ pub mod models;
 pub mod paint;
 mod parallel;
 pub mod params;
+pub mod poly_fit;
 pub mod presets;
 pub mod quadrature;
 pub mod real;

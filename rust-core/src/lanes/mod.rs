@@ -82,6 +82,10 @@ pub trait Lanes:
     type Elem: Real;
     /// Number of lanes.
     const WIDTH: usize;
+    /// Whether [`Lanes::lookup_f32_`] on a 32-entry table is a register permute (AVX-512: one
+    /// `vpermt2ps`) rather than a memory gather or per-lane loads. Kernels use tabulated fits
+    /// ([`crate::poly_fit::MuPolyFit`]) in place of exact formulas only where this holds.
+    const REGISTER_LOOKUP: bool = false;
 
     /// `x` in every lane.
     fn splat(x: Self::Elem) -> Self;

@@ -414,6 +414,7 @@ impl Lanes for F32x16 {
     type Mask = M16;
     type Elem = f32;
     const WIDTH: usize = 16;
+    const REGISTER_LOOKUP: bool = true;
 
     #[inline(always)]
     fn splat(x: f32) -> Self {

@@ -65,7 +65,7 @@ use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
 use crate::lanes::{self, Lanes, Mask};
-use crate::fresnel::{conductor, conductor_rgb, metal};
+use crate::fresnel::{conductor, metal, ConductorFresnel};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::models::Model;
@@ -169,8 +169,7 @@ fn build(p: &Params) -> Result<Model, Error> {
         distribution,
         alpha_u,
         alpha_v,
-        eta,
-        k,
+        fresnel: ConductorFresnel::new(eta, k),
         specular_reflectance: p.color("specular_reflectance"),
         masking,
         sample_visible: p.boolean("sample_visible"),
@@ -187,10 +186,9 @@ pub struct RoughConductor {
     pub alpha_u: f64,
     /// Roughness along the bitangent.
     pub alpha_v: f64,
-    /// Real part of the IOR per channel.
-    pub eta: [f64; 3],
-    /// Imaginary part of the IOR per channel.
-    pub k: [f64; 3],
+    /// Fresnel of the complex IOR `η + i·k` per channel (exact, or its measured fit on
+    /// AVX-512 lanes).
+    pub fresnel: ConductorFresnel,
     /// Scale of the BRDF.
     pub specular_reflectance: [f64; 3],
     /// Smith masking combination.
@@ -213,7 +211,7 @@ impl RoughConductor {
         let Some(ms) = &self.ms else {
             return L::c(1.0);
         };
-        let f = conductor_rgb(wo.z, Rgb::from_array(self.eta), Rgb::from_array(self.k));
+        let f = self.fresnel.eval(wo.z);
         let scale = Rgb::from_array(self.specular_reflectance);
         // Rgb::average, written out for lanes.
         let average = |c: Rgb<L>| (c.r + c.g + c.b) / L::c(3.0);
@@ -229,7 +227,7 @@ impl RoughConductor {
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
         let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
-        let fr = conductor_rgb(wo.dot(h), Rgb::from_array(self.eta), Rgb::from_array(self.k));
+        let fr = self.fresnel.eval(wo.dot(h));
         Rgb::select(defined, fr * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z), Rgb::zero())
     }
 }
@@ -264,7 +262,7 @@ impl LaneBxdf for RoughConductor {
             let m = mf.sample_m(wo, u[1], u[2], true);
             let wi = crate::frame::reflect(wo, m);
             let om = wo.dot(m);
-            let f = conductor_rgb(om, Rgb::from_array(self.eta), Rgb::from_array(self.k));
+            let f = self.fresnel.eval(om);
             let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
             let pdf = lanes::div_fast(mf.g1(wo, m) * mf.d(m), L::c(4.0) * wo.z);
             let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);

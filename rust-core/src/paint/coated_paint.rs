@@ -351,8 +351,10 @@ impl CoatedPaint {
             FlakeLayer {
                 alpha: flake_alpha,
                 metallic_coverage: flake_c,
-                metal_eta: per_channel(metal.eta).map(|n| n / eta),
-                metal_k: per_channel(metal.k).map(|k| k / eta),
+                metal: fresnel::ConductorFresnel::new(
+                    per_channel(metal.eta).map(|n| n / eta),
+                    per_channel(metal.k).map(|k| k / eta),
+                ),
                 pearl_coverage: pearl_c,
                 pearl_reflectance: pearl_table.clone(),
             }

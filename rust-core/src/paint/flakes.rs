@@ -23,10 +23,8 @@ pub struct FlakeLayer {
     pub alpha: f64,
     /// Area coverage of metallic flakes, 0..1.
     pub metallic_coverage: f64,
-    /// Metallic flake IOR relative to the binder (real part) per channel.
-    pub metal_eta: [f64; 3],
-    /// Metallic flake extinction relative to the binder per channel.
-    pub metal_k: [f64; 3],
+    /// Fresnel of the metallic flakes, their complex IOR taken relative to the binder.
+    pub metal: fresnel::ConductorFresnel,
     /// Area coverage of pearlescent flakes, 0..1.
     pub pearl_coverage: f64,
     /// Thin-film reflectance of pearlescent flakes over `cos θ` on the flake.
@@ -67,7 +65,7 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn metal_reflectance<T: Lanes>(&self, cos: T) -> Rgb<T> {
-        fresnel::conductor_rgb(cos, Rgb::from_array(self.metal_eta), Rgb::from_array(self.metal_k))
+        self.metal.eval(cos)
     }
 
     /// Reflectance of the pearlescent population at incidence `cos` on a flake.
@@ -257,8 +255,10 @@ mod tests {
         FlakeLayer {
             alpha,
             metallic_coverage: 0.3,
-            metal_eta: [0.18 / 1.5, 0.42 / 1.5, 1.37 / 1.5],
-            metal_k: [3.42 / 1.5, 2.35 / 1.5, 1.77 / 1.5],
+            metal: fresnel::ConductorFresnel::new(
+                [0.18 / 1.5, 0.42 / 1.5, 1.37 / 1.5],
+                [3.42 / 1.5, 2.35 / 1.5, 1.77 / 1.5],
+            ),
             pearl_coverage: 0.0,
             pearl_reflectance: None,
         }

@@ -382,11 +382,12 @@ impl VaryingPaint {
         let flake_alpha = p.scalar("flake_orientation_deg").to_radians().tan();
         let metal_ior = fresnel::metal(p.choice("flake_material")).expect("choice list holds known metals");
         let pearl_table = base.flakes.as_ref().and_then(|f| f.pearl_reflectance.clone());
+        let metal_fresnel =
+            fresnel::ConductorFresnel::new(metal_ior.eta.map(|n| n / eta), metal_ior.k.map(|k| k / eta));
         let unit_flakes = |metal: f64, pearl: f64| FlakeLayer {
             alpha: flake_alpha,
             metallic_coverage: metal,
-            metal_eta: metal_ior.eta.map(|n| n / eta),
-            metal_k: metal_ior.k.map(|k| k / eta),
+            metal: metal_fresnel.clone(),
             pearl_coverage: pearl,
             pearl_reflectance: pearl_table.clone(),
         };
