@@ -458,6 +458,36 @@ pub fn speed_error_report(n: usize) -> Vec<ReportRow> {
             error: error_stats(&fast_f64, &reference),
         });
     }
+    // The conductor Fresnel's quintic fit, which only the AVX-512 lanes use: the GGX gold
+    // conductor's f32 batch eval with the fit against the same model with the exact formula
+    // everywhere (timed side by side); error of the fitted batch against the f64 reference.
+    let ggx_au =
+        r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.2, "alpha_v": 0.2, "material": "Au"}"#;
+    if let Ok(fitted) = Material::from_json(ggx_au) {
+        if let crate::models::Model::RoughConductor(rc) = fitted.model() {
+            let exact_model =
+                crate::models::rough_conductor::RoughConductor { fresnel: rc.fresnel.exact_only(), ..rc.clone() };
+            let exact = Material::from_parts(
+                fitted.info(),
+                fitted.params().clone(),
+                crate::models::Model::RoughConductor(exact_model),
+            );
+            let reference = reference_values(&fitted, &inp);
+            let exact_error = error_stats(&batch_values(&exact, &inp), &reference);
+            rows.push(ReportRow {
+                what: "Conductor Fresnel fit (32 quintic pieces, AVX-512 lanes only)".into(),
+                comparison: format!(
+                    "GGX gold batch eval, fit vs exact formula; error vs f64 (exact formula in f32: max {:.1e}, rms {:.1e}; fit alone {:.1e})",
+                    exact_error.max,
+                    exact_error.rms,
+                    rc.fresnel.fit_error().unwrap_or(f64::NAN)
+                ),
+                ns_fast: time_batch_eval(&fitted, &inp, reps),
+                ns_reference: time_batch_eval(&exact, &inp, reps),
+                error: error_stats(&batch_values(&fitted, &inp), &reference),
+            });
+        }
+    }
     // Schlick's approximation against the exact conductor Fresnel (gold, per channel, over
     // cos θ), and the polynomial exp / sin / cos of the SIMD lanes against f64 (in the lane
     // tests: `lanes::x86` tests report their maxima).

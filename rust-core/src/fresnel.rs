@@ -7,8 +7,8 @@
 use crate::lanes::{self, Lanes};
 use crate::math::Rgb;
 use crate::poly_fit::MuPolyFit;
-use std::sync::Arc;
 use crate::real::Real;
+use std::sync::Arc;
 
 /// Unpolarised Fresnel reflectance of a dielectric interface.
 ///
@@ -377,5 +377,60 @@ mod tests {
             }
         }
         assert_eq!(conductor(1e-30f32, 1.0, 0.0), 0.0);
+    }
+
+    /// The fitted conductor Fresnel against the exact formula in f64, per channel, for the
+    /// measured metals in air and in a binder of index 1.5 (the paint's flakes), at 4097
+    /// cosines including both ends: every lane type agrees with f64 to 1e-6 relative (the
+    /// fit's tolerance). Measured: the fitted AVX-512 lanes 1.8e-7, while the exact formula
+    /// in f32 gives 4.2e-7 (scalar) and 4.5e-7 (AVX2): the fit is the more accurate f32 path.
+    /// Index-matched interfaces keep the exact formula.
+    #[test]
+    fn fitted_conductor_fresnel_matches_the_exact_formula() {
+        let mut materials: Vec<([f64; 3], [f64; 3])> = Vec::new();
+        for m in METALS {
+            materials.push((m.eta, m.k));
+            materials.push((m.eta.map(|n| n / 1.5), m.k.map(|k| k / 1.5)));
+        }
+        fn check<L: Lanes>(materials: &[([f64; 3], [f64; 3])]) -> f64 {
+            let mut worst = 0.0f64;
+            for &(eta, k) in materials {
+                let fresnel = ConductorFresnel::new(eta, k);
+                let fit_error = fresnel.fit_error().expect("a measured metal has a fit");
+                assert!(fit_error < 3e-7, "fit error {fit_error} for eta {eta:?}, k {k:?}");
+                for j in 0..=4096 / L::WIDTH {
+                    let mu = L::from_fn(|i| L::Elem::of(((j * L::WIDTH + i) as f64 / 4096.0).min(1.0)));
+                    let f = fresnel.eval(mu);
+                    for i in 0..L::WIDTH {
+                        let m = mu.lane(i).f64();
+                        for (c, got) in [f.r, f.g, f.b].into_iter().enumerate() {
+                            let exact = conductor(m, eta[c], k[c]);
+                            worst = worst.max((got.lane(i).f64() - exact).abs() / exact);
+                        }
+                    }
+                }
+            }
+            worst
+        }
+        // One lane: the exact formula (f64 bit-identical to `conductor`).
+        let (worst_f64, worst_f32) = (check::<f64>(&materials), check::<f32>(&materials));
+        eprintln!("one lane: f64 {worst_f64:.2e}, f32 {worst_f32:.2e}");
+        assert!(worst_f64 < 1e-14);
+        assert!(worst_f32 < 1e-6);
+        #[cfg(target_arch = "x86_64")]
+        {
+            fn simd<L: Lanes>() {
+                let mut materials = Vec::new();
+                for m in METALS {
+                    materials.push((m.eta, m.k));
+                    materials.push((m.eta.map(|n| n / 1.5), m.k.map(|k| k / 1.5)));
+                }
+                let worst = check::<L>(&materials);
+                eprintln!("{} lanes: {worst:.2e}", L::WIDTH);
+                assert!(worst < 1e-6, "{} lanes: {worst}", L::WIDTH);
+            }
+            crate::lanes::x86::check_each_simd_type!(simd);
+        }
+        assert!(ConductorFresnel::new([1.0; 3], [0.0; 3]).fit_error().is_none(), "index-matched");
     }
 }

@@ -89,9 +89,7 @@ impl MuPolyFit {
         let x = mu.clamp(0.0, 1.0) * PIECES as f64;
         let piece = (x as usize).min(PIECES - 1);
         let t = x - piece as f64;
-        self.coefficients.map(|channel| {
-            channel.iter().fold(0.0, |y, row| y * t + f64::from(row[piece]))
-        })
+        self.coefficients.map(|channel| channel.iter().fold(0.0, |y, row| y * t + f64::from(row[piece])))
     }
 
     /// The fit at `μ` (clamped to `[0, 1]`) per lane: the piece's six coefficients read with

@@ -163,8 +163,7 @@ pub struct CookTorrance {
 impl CookTorrance {
     #[inline(always)]
     fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        let a = T::c(self.alpha);
-        Microfacet::new(self.distribution, a, a)
+        Microfacet::uniform(self.distribution, self.alpha, self.alpha)
     }
 
     /// The Fresnel reflectance per channel; computed once when the three channels share the
@@ -211,9 +210,9 @@ impl LaneBxdf for CookTorrance {
         }
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<L>();
-        let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
+        let (dg, _) = mf.reflection_dg(wi, wo, h, self.masking);
         let fr = self.fresnel(wo.dot(h));
-        f + Rgb::select(defined, fr * (ks * dg / (L::c(4.0) * wi.z * wo.z)), Rgb::zero())
+        f + Rgb::select(defined, fr * (ks * dg), Rgb::zero())
     }
 
     #[inline(always)]

@@ -424,8 +424,7 @@ impl Lobe {
 
     #[inline(always)]
     fn microfacet<L: Lanes>(&self) -> Microfacet<L> {
-        let a = L::c(self.alpha);
-        Microfacet::new(GGX, a, a)
+        Microfacet::uniform(GGX, self.alpha, self.alpha)
     }
 
     /// The E table (`None` for a mirror): its cells serve every table of the lobe.
@@ -459,9 +458,8 @@ impl Lobe {
     #[inline(always)]
     fn shape<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, h: Vec3<L>, defined: L::Mask) -> (L, L::Mask) {
         let mf = self.microfacet::<L>();
-        let g = mf.g(wi, wo, h, HEIGHT_CORRELATED);
-        let v = mf.d(h) * g / (L::c(4.0) * wi.z * wo.z);
-        (v, defined & lanes::gt(g, L::c(0.0)) & lanes::is_finite(v))
+        let (v, g_positive) = mf.reflection_dg(wi, wo, h, HEIGHT_CORRELATED);
+        (v, defined & g_positive & lanes::is_finite(v))
     }
 }
 

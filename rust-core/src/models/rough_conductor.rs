@@ -202,7 +202,7 @@ pub struct RoughConductor {
 impl RoughConductor {
     #[inline(always)]
     fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        Microfacet::new(self.distribution, T::c(self.alpha_u), T::c(self.alpha_v))
+        Microfacet::uniform(self.distribution, self.alpha_u, self.alpha_v)
     }
 
     /// Selection probability of the specular lobe for this `wo` (1 without compensation).
@@ -226,9 +226,9 @@ impl RoughConductor {
     fn single_scattering<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
-        let dg = mf.d(h) * mf.g(wi, wo, h, self.masking);
+        let (dg, _) = mf.reflection_dg(wi, wo, h, self.masking);
         let fr = self.fresnel.eval(wo.dot(h));
-        Rgb::select(defined, fr * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z), Rgb::zero())
+        Rgb::select(defined, fr * dg, Rgb::zero())
     }
 }
 

@@ -366,8 +366,7 @@ pub struct RoughPlastic {
 impl RoughPlastic {
     #[inline(always)]
     fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        let a = T::c(self.alpha);
-        Microfacet::new(self.distribution, a, a)
+        Microfacet::uniform(self.distribution, self.alpha, self.alpha)
     }
 
     /// Mitsuba's probability of sampling the specular lobe, from `t_i = T(cos θo)`.
@@ -392,9 +391,9 @@ impl RoughPlastic {
         if specular {
             let (h, defined) = half_vector_masked(wi, wo);
             let mf = self.microfacet::<L>();
-            let dg = mf.d(h) * mf.g(wi, wo, h, MaskingKind::Separable);
+            let (dg, _) = mf.reflection_dg(wi, wo, h, MaskingKind::Separable);
             let fr = dielectric(wo.dot(h), L::c(self.eta));
-            let spec = Rgb::from_array(self.specular) * (fr * dg / (L::c(4.0) * wi.z * wo.z));
+            let spec = Rgb::from_array(self.specular) * (fr * dg);
             f += Rgb::select(defined, spec, Rgb::zero());
         }
         f

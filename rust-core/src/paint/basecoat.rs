@@ -35,8 +35,7 @@ pub struct MetalBase {
 impl MetalBase {
     #[inline(always)]
     pub(crate) fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        let a = T::c(self.alpha);
-        Microfacet::new(DistributionKind::Ggx, a, a)
+        Microfacet::uniform(DistributionKind::Ggx, self.alpha, self.alpha)
     }
 
     /// The GGX distribution with `added` (per lane) added to `α²`: the base seen through a
@@ -67,13 +66,13 @@ impl MetalBase {
         wo: Vec3<T>,
     ) -> Rgb<T> {
         let (h, defined) = half_vector_masked(wi, wo);
-        let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
         let (f, ok) = match other {
-            None => (
-                fresnel::schlick_rgb(wi.dot(h), f0) * (weight * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z)),
-                lanes::gt(g, T::c(0.0)),
-            ),
+            None => {
+                let (dg, g_positive) = mf.reflection_dg(wi, wo, h, MaskingKind::HeightCorrelated);
+                (fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg), g_positive)
+            }
             Some(b) => {
+                let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
                 let dg = lanes::min(mf.d(h) * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
                 (
                     fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg / (T::c(4.0) * wi.z * wo.z)),

@@ -297,8 +297,7 @@ impl Coat {
 
     #[inline(always)]
     fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        let a = T::c(self.roughness);
-        Microfacet::new(DistributionKind::Ggx, a, a)
+        Microfacet::uniform(DistributionKind::Ggx, self.roughness, self.roughness)
     }
 
     /// Energy the top surface reflects for incidence `μ`: `F(μ)` (smooth) or `E_top(μ)`.
@@ -432,9 +431,8 @@ impl Coat {
         }
         let (h, defined) = half_vector_masked(wi, wo);
         let mf = self.microfacet::<T>();
-        let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        let f = fresnel::dielectric(wo.dot(h), T::c(self.ior)) * mf.d(h) * g / (T::c(4.0) * wi.z * wo.z);
-        keep(defined & lanes::gt(g, T::c(0.0)), f)
+        let (dg, g_positive) = mf.reflection_dg(wi, wo, h, MaskingKind::HeightCorrelated);
+        keep(defined & g_positive, fresnel::dielectric(wo.dot(h), T::c(self.ior)) * dg)
     }
 
     /// Density of [`Coat::reflection_sample`] (visible-normal sampling).

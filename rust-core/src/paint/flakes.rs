@@ -48,8 +48,7 @@ pub enum FlakeSampler {
 impl FlakeLayer {
     #[inline(always)]
     pub(crate) fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
-        let a = T::c(self.alpha);
-        Microfacet::new(DistributionKind::Beckmann, a, a)
+        Microfacet::uniform(DistributionKind::Beckmann, self.alpha, self.alpha)
     }
 
     /// The Beckmann distribution with `added` (per lane) added to `α²`: the flakes seen through
