@@ -142,10 +142,11 @@ fn interpolate(nodes: &[f64; DEGREE + 1], values: &[f64; DEGREE + 1]) -> Option<
             return None;
         }
         a.swap(col, pivot);
-        for row in col + 1..N {
-            let factor = a[row][col] / a[col][col];
-            for k in col..=N {
-                a[row][k] -= factor * a[col][k];
+        let pivot_row = a[col];
+        for row in a.iter_mut().skip(col + 1) {
+            let factor = row[col] / pivot_row[col];
+            for (entry, p) in row.iter_mut().zip(pivot_row.iter()).skip(col) {
+                *entry -= factor * p;
             }
         }
     }
