@@ -20,6 +20,9 @@ use std::sync::Arc;
 pub fn dielectric<T: Lanes>(cos_i: T, eta: T) -> T {
     let one = T::c(1.0);
     let inside = lanes::lt(cos_i, T::c(0.0));
+    // Exact divisions and root, not the fast estimates: at grazing incidence layered models
+    // use 1 − F, which is O(cos θ) and would inherit the estimates' 2-ulp error of F as a
+    // relative error of 2 ulp / cos θ (1 % at cos θ = 1e-6 in `principled`'s coat).
     let eta = lanes::select(inside, one / eta, eta);
     let cos_i = lanes::min(lanes::abs(cos_i), one);
     let sin2_t = (one - cos_i * cos_i) / (eta * eta);

@@ -115,8 +115,8 @@ impl<T: Lanes> Microfacet<T> {
                 lanes::div_fast(T::c(1.0), pi * ax * ay * t * t)
             }
             DistributionKind::Beckmann => {
-                let e = (sx * sx + sy * sy) / z2;
-                lanes::exp(-e) / (pi * ax * ay * z2 * z2)
+                let e = lanes::div_fast(sx * sx + sy * sy, z2);
+                lanes::div_fast(lanes::exp(-e), pi * ax * ay * z2 * z2)
             }
         };
         keep(gt(m.z, T::c(0.0)), d)
@@ -130,8 +130,8 @@ impl<T: Lanes> Microfacet<T> {
         let l = match self.kind {
             DistributionKind::Ggx => {
                 // (√(1 + α²tan²θ) − 1)/2 written without cancellation.
-                let t = a2_sin2 / cos2_theta(w);
-                t / (T::c(2.0) * (T::c(1.0) + lanes::sqrt(T::c(1.0) + t)))
+                let t = lanes::div_fast(a2_sin2, cos2_theta(w));
+                lanes::div_fast(t, T::c(2.0) * (T::c(1.0) + lanes::sqrt_fast(T::c(1.0) + t)))
             }
             DistributionKind::Beckmann => beckmann_lambda(w.z, a2_sin2),
         };
@@ -164,7 +164,12 @@ impl<T: Lanes> Microfacet<T> {
         let front = gt(wi.dot(m), T::c(0.0)) & gt(wo.dot(m), T::c(0.0));
         let g = match masking {
             MaskingKind::Separable => self.g1(wi, m) * self.g1(wo, m),
-            MaskingKind::HeightCorrelated => T::c(1.0) / (T::c(1.0) + self.lambda(wi) + self.lambda(wo)),
+            MaskingKind::HeightCorrelated => {
+                // Λ is +∞ below the horizon, where the fast reciprocal is unspecified: 0 there,
+                // as the division gives.
+                let den = T::c(1.0) + self.lambda(wi) + self.lambda(wo);
+                keep(!eq(den, T::c(f64::INFINITY)), lanes::div_fast(T::c(1.0), den))
+            }
             MaskingKind::VGroove => g_vgroove(wi, wo, m),
         };
         keep(front, g)
@@ -222,7 +227,7 @@ impl<T: Lanes> Microfacet<T> {
     pub fn visible_d(&self, w: Vec3<T>, m: Vec3<T>) -> T {
         let wm = w.dot(m);
         let visible = gt(w.z, T::c(0.0)) & gt(wm, T::c(0.0));
-        keep(visible, self.g1(w, m) * wm * self.d(m) / w.z)
+        keep(visible, lanes::div_fast(self.g1(w, m) * wm * self.d(m), w.z))
     }
 
     /// Samples a microfacet normal. With `visible` the density is [`Self::visible_d`]
@@ -394,7 +399,8 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
 /// (α = tan 12°) under η 1.5 have `a` ≥ 5.3 for every refracted direction.
 #[inline(always)]
 fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
-    let a = cos_theta / lanes::sqrt(a2_sin2);
+    // At a2_sin2 = 0 (normal incidence) `a` is huge instead of ∞: Λ is 0 either way.
+    let a = lanes::div_fast(cos_theta, lanes::sqrt_fast(lanes::max(a2_sin2, T::c(f64::from(f32::MIN_POSITIVE)))));
     if gt(a, T::c(beckmann_lambda_negligible_from::<T::Elem>())).all() {
         return T::c(0.0);
     }
@@ -405,7 +411,7 @@ fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
 #[inline(always)]
 fn beckmann_lambda_of_a<T: Lanes>(a: T) -> T {
     let inv_sqrt_pi = T::c(0.5 * std::f64::consts::FRAC_2_SQRT_PI);
-    let l = lanes::max(lanes::exp(-a * a) * inv_sqrt_pi / a - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
+    let l = lanes::max(lanes::div_fast(lanes::exp(-a * a) * inv_sqrt_pi, a) - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
     keep(le(a, T::c(26.0)), l)
 }
 
@@ -516,7 +522,7 @@ pub fn g_vgroove<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>, h: Vec3<T>) -> T {
 #[must_use]
 pub fn reflection_jacobian<T: Lanes>(wo: Vec3<T>, h: Vec3<T>) -> T {
     let oh = lanes::abs(wo.dot(h));
-    keep(gt(oh, T::c(0.0)), T::c(1.0) / (T::c(4.0) * oh))
+    keep(gt(oh, T::c(0.0)), lanes::div_fast(T::c(1.0), T::c(4.0) * oh))
 }
 
 #[cfg(test)]

@@ -162,6 +162,10 @@ pub trait Lanes:
     /// `1/√self` likewise: exact for one lane, estimate + one Newton step (≤ 2 ulp) for SIMD
     /// lanes, unspecified for 0 and ±∞.
     fn rsqrt_fast_(self) -> Self;
+    /// `√self` where the square-root unit limits throughput: exact for one lane; for SIMD
+    /// lanes `x · r` with `r` the reciprocal-square-root estimate refined by one Newton step
+    /// (≤ 2 ulp), exactly 0 for `self = 0`, for finite `self ≥ 0` (unspecified otherwise).
+    fn sqrt_fast_(self) -> Self;
     /// `e^x`.
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
@@ -306,6 +310,10 @@ impl<T: Real> Lanes for T {
         T::one() / num_traits::Float::sqrt(self)
     }
     #[inline(always)]
+    fn sqrt_fast_(self) -> Self {
+        num_traits::Float::sqrt(self)
+    }
+    #[inline(always)]
     fn exp_(self) -> Self {
         num_traits::Float::exp(self)
     }
@@ -377,6 +385,11 @@ pub fn div_fast<L: Lanes>(a: L, b: L) -> L {
 #[inline(always)]
 pub fn rsqrt_fast<L: Lanes>(x: L) -> L {
     x.rsqrt_fast_()
+}
+/// `√x` through the fast estimate on SIMD lanes (exact in one lane), for finite `x ≥ 0`.
+#[inline(always)]
+pub fn sqrt_fast<L: Lanes>(x: L) -> L {
+    x.sqrt_fast_()
 }
 /// `e^x`.
 #[inline(always)]

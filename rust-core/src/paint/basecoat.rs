@@ -42,7 +42,7 @@ impl MetalBase {
     /// rough coat ([`TransmissionBlur`]).
     #[inline(always)]
     pub(crate) fn blurred<T: Lanes>(&self, added: T) -> Microfacet<T> {
-        let a = lanes::sqrt(T::c(self.alpha * self.alpha) + added);
+        let a = lanes::sqrt_fast(T::c(self.alpha * self.alpha) + added);
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
@@ -75,7 +75,7 @@ impl MetalBase {
                 let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
                 let dg = lanes::min(mf.d(h) * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
                 (
-                    fresnel::schlick_rgb(wi.dot(h), f0) * (weight * dg / (T::c(4.0) * wi.z * wo.z)),
+                    fresnel::schlick_rgb(wi.dot(h), f0) * lanes::div_fast(weight * dg, T::c(4.0) * wi.z * wo.z),
                     lanes::gt(dg, T::c(0.0)),
                 )
             }
@@ -361,7 +361,7 @@ impl Basecoat {
                 }
             }
         }
-        p / total
+        lanes::div_fast(p, total)
     }
 
     /// Picks a lobe with `u0` and samples a direction from it (may be below the surface).

@@ -76,8 +76,8 @@ impl TransmissionBlur {
         let eta = L::c(ior);
         let mu_in = lanes::max(mu_in, L::c(1e-6));
         // Outside cosine; 0 under total internal reflection (then k = 1).
-        let mu_out = lanes::safe_sqrt(L::c(1.0) - eta * eta * (L::c(1.0) - mu_in * mu_in));
-        let k = L::c(1.0) - mu_out / (eta * mu_in);
+        let mu_out = lanes::sqrt_fast(lanes::max(L::c(1.0) - eta * eta * (L::c(1.0) - mu_in * mu_in), L::c(0.0)));
+        let k = L::c(1.0) - lanes::div_fast(mu_out, eta * mu_in);
         k * k * L::c(0.25)
     }
 
@@ -170,9 +170,10 @@ pub fn ms_azimuthal<L: Lanes>(wi: Vec3<L>, wo: Vec3<L>) -> L {
     let ss = lanes::sqrt(si2 * so2);
     let dot = wi.x * wo.x + wi.y * wo.y;
     let cos_dphi = lanes::clamp(dot / lanes::max(ss, L::c(1e-300)), L::c(-1.0), L::c(1.0));
-    let rho = L::c(MS_FORWARD_CONCENTRATION) * lanes::sqrt(ss);
+    let rho = L::c(MS_FORWARD_CONCENTRATION) * lanes::sqrt_fast(ss);
     let rho2 = rho * rho;
-    (L::c(1.0) - rho2) / (L::c(1.0) + rho2 + L::c(2.0) * rho * cos_dphi)
+    // The divisor is at least (1 − ρ)² > 0.
+    lanes::div_fast(L::c(1.0) - rho2, L::c(1.0) + rho2 + L::c(2.0) * rho * cos_dphi)
 }
 
 /// Samples the shape of the multiple-scattering reflection for `wo`: `cos θi` from the cosine
@@ -465,8 +466,10 @@ impl Coat {
         let eta = T::c(self.ior);
         // cos²θ' = (η² − 1 + cos²θ)/η², written from z so it stays exact at η = 1 and grazing.
         let tiny = T::splat(<T::Elem as num_traits::Float>::min_positive_value());
-        let z = lanes::max(lanes::safe_sqrt(eta * eta - T::c(1.0) + w.z * w.z) / eta, tiny);
-        Vec3::new(w.x / eta, w.y / eta, z)
+        // 1/η taken once in f64: the lanes multiply instead of dividing.
+        let inv_eta = T::c(1.0 / self.ior);
+        let z = lanes::max(lanes::sqrt_fast(lanes::max(eta * eta - T::c(1.0) + w.z * w.z, T::c(0.0))) * inv_eta, tiny);
+        Vec3::new(w.x * inv_eta, w.y * inv_eta, z)
     }
 
     /// Outside direction of light leaving the coat along inside direction `w`, or `None` under
@@ -494,7 +497,7 @@ impl Coat {
     #[inline(always)]
     #[must_use]
     pub fn solid_angle_ratio<T: Lanes>(&self, mu_out: T, mu_in: T) -> T {
-        mu_out / (T::c(self.ior * self.ior) * mu_in)
+        lanes::div_fast(mu_out, T::c(self.ior * self.ior) * mu_in)
     }
 
     /// Beer-Lambert transmittance of one crossing along an inside direction with cosine `mu_in`.

@@ -566,7 +566,7 @@ impl CoatedPaint {
                     f += self.spec_term(spec, wi, wo, wi_in, wo_in);
                 }
             }
-            f * (ti * to / T::c(self.coat.ior * self.coat.ior))
+            f * lanes::div_fast(ti * to, T::c(self.coat.ior * self.coat.ior))
         };
         if self.coat.absorbs() {
             let (ai, ao) = (self.coat.attenuation(wi_in.z), self.coat.attenuation(wo_in.z));
@@ -688,7 +688,7 @@ impl CoatedPaint {
                 p += ms * (ms_pdf(wi, wo) - cosine_hemisphere_pdf(wi.z));
             }
         }
-        keep(lanes::gt(total, T::c(0.0)), p / total)
+        keep(lanes::gt(total, T::c(0.0)), lanes::div_fast(p, total))
     }
 
     /// The sum of the lobe-selection weights sampling gives the lobes `parts` enables, for an

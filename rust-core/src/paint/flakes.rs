@@ -56,7 +56,7 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn blurred<T: Lanes>(&self, added: T) -> Microfacet<T> {
-        let a = lanes::sqrt(T::c(self.alpha * self.alpha) + added);
+        let a = lanes::sqrt_fast(T::c(self.alpha * self.alpha) + added);
         Microfacet::new(DistributionKind::Beckmann, a, a)
     }
 
@@ -126,7 +126,7 @@ impl FlakeLayer {
                 (dg, lanes::gt(dg, T::c(0.0)))
             }
         };
-        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * (dg / (T::c(4.0) * wi.z * wo.z));
+        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z);
         Rgb::select(defined & ok, f, Rgb::zero())
     }
 
