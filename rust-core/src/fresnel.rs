@@ -390,14 +390,13 @@ mod tests {
     /// Index-matched interfaces keep the exact formula.
     #[test]
     fn fitted_conductor_fresnel_matches_the_exact_formula() {
-        let mut materials: Vec<([f64; 3], [f64; 3])> = Vec::new();
-        for m in METALS {
-            materials.push((m.eta, m.k));
-            materials.push((m.eta.map(|n| n / 1.5), m.k.map(|k| k / 1.5)));
+        /// Each measured metal in air and relative to a binder of index 1.5.
+        fn materials() -> Vec<([f64; 3], [f64; 3])> {
+            METALS.iter().flat_map(|m| [(m.eta, m.k), (m.eta.map(|n| n / 1.5), m.k.map(|k| k / 1.5))]).collect()
         }
-        fn check<L: Lanes>(materials: &[([f64; 3], [f64; 3])]) -> f64 {
+        fn check<L: Lanes>() -> f64 {
             let mut worst = 0.0f64;
-            for &(eta, k) in materials {
+            for (eta, k) in materials() {
                 let fresnel = ConductorFresnel::new(eta, k);
                 let fit_error = fresnel.fit_error().expect("a measured metal has a fit");
                 assert!(fit_error < 3e-7, "fit error {fit_error} for eta {eta:?}, k {k:?}");
@@ -416,19 +415,14 @@ mod tests {
             worst
         }
         // One lane: the exact formula (f64 bit-identical to `conductor`).
-        let (worst_f64, worst_f32) = (check::<f64>(&materials), check::<f32>(&materials));
+        let (worst_f64, worst_f32) = (check::<f64>(), check::<f32>());
         eprintln!("one lane: f64 {worst_f64:.2e}, f32 {worst_f32:.2e}");
         assert!(worst_f64 < 1e-14);
         assert!(worst_f32 < 1e-6);
         #[cfg(target_arch = "x86_64")]
         {
             fn simd<L: Lanes>() {
-                let mut materials = Vec::new();
-                for m in METALS {
-                    materials.push((m.eta, m.k));
-                    materials.push((m.eta.map(|n| n / 1.5), m.k.map(|k| k / 1.5)));
-                }
-                let worst = check::<L>(&materials);
+                let worst = check::<L>();
                 eprintln!("{} lanes: {worst:.2e}", L::WIDTH);
                 assert!(worst < 1e-6, "{} lanes: {worst}", L::WIDTH);
             }
