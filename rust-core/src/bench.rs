@@ -398,11 +398,23 @@ pub struct ReportRow {
 }
 
 /// The speed-vs-error report: every model's f32 batch path against its f64 reference, and
-/// each approximation the library offers against the exact form it replaces.
+/// each approximation the library offers against the exact form it replaces. Every time is
+/// one thread's (the batch calls run with [`batch::set_thread_count`] 1, restored after), the
+/// minimum of 7 calls.
 #[must_use]
 pub fn speed_error_report(n: usize) -> Vec<ReportRow> {
+    let saved_threads = batch::thread_count();
+    batch::set_thread_count(1);
+    let rows = speed_error_rows(n);
+    batch::set_thread_count(saved_threads);
+    rows
+}
+
+fn speed_error_rows(n: usize) -> Vec<ReportRow> {
     let inp = inputs(n.max(256));
-    let reps = 3;
+    // Seven calls, not three: with three the minimum still moved 2× between runs on a shared
+    // machine (e.g. `rough_conductor` 6.6 / 12.6 ns, two threads).
+    let reps = 7;
     let mut rows = Vec::new();
     let simd = batch::simd_level().name();
     for info in crate::models::all() {
