@@ -930,12 +930,9 @@ fn base_sample_terms(
     // `f_b` and the two components whose shares are needed, each lobe evaluated once: `f_b`
     // is summed as `Basecoat::eval` sums it (pigment, + metal, + flakes), so it is the same
     // value bit for bit.
-    let (metal, flakes) = if spec_series || split {
-        (base.metal_eval(s.wi, w_in), base.flakes_eval(s.wi, w_in, 1.0, 1.0))
-    } else {
-        (Rgb::zero(), Rgb::zero())
-    };
-    let fb = if spec_series || split {
+    let (metal, flakes, fb) = if spec_series || split {
+        let metal = base.metal_eval(s.wi, w_in);
+        let flakes = base.flakes_eval(s.wi, w_in, 1.0, 1.0);
         let mut fb = base.eval_parts(s.wi, w_in, 1.0, 1.0, BaseParts { pigment: true, glossy: false });
         if base.metal.is_some() {
             fb += metal;
@@ -943,9 +940,9 @@ fn base_sample_terms(
         if base.flakes.is_some() {
             fb += flakes;
         }
-        fb
+        (metal, flakes, fb)
     } else {
-        Rgb::zero()
+        (Rgb::zero(), Rgb::zero(), Rgb::zero())
     };
     let share = |f: Rgb<f64>| [0, 1, 2].map(|c| if fb[c] > 0.0 { (f[c] / fb[c]).clamp(0.0, 1.0) } else { 0.0 });
     let metal_share = if spec_series { share(metal) } else { [0.0; 3] };
