@@ -30,7 +30,8 @@ What is compared (same work on both sides):
     bsdf.eval / pdf / sample followed by dr.eval of the same outputs (f; pdf; wi, weight and
     pdf of the sample) and dr.sync_thread(), i.e. tracing plus running the kernel. Kernels
     are compiled (and cached) in untimed warm-up calls. Lacquer and Mitsuba repetitions
-    alternate so that machine load hits both alike.
+    alternate so that machine load hits both alike, with a pause of --pause seconds (default
+    0.03) before each call so that the other library's idle workers have stopped spinning.
   * Check column: where the two BRDFs are the same model, the largest relative difference
     between the two results (eval compared as Lacquer f·cos θi against Mitsuba's eval; a
     sample is checked by evaluating Mitsuba's eval and pdf at Lacquer's sampled direction and
@@ -423,6 +424,10 @@ def summarise(row, n):
     return out
 
 
+# Seconds between two timed calls (--pause).
+PAUSE_S = 0.03
+
+
 def time_alternating(fns, reps, warmup=2):
     """Run each closure `warmup` times untimed, then `reps` rounds of one call each, in
     turn; returns the wall times (ns) per closure."""
@@ -437,7 +442,7 @@ def time_alternating(fns, reps, warmup=2):
                 # Both libraries' worker pools spin for a while after a call before they
                 # sleep (Dr.Jit's nanothread, rayon): a pause keeps one library's idle
                 # workers from taking the cores the next measured call runs on.
-                time.sleep(0.03)
+                time.sleep(PAUSE_S)
                 t0 = time.perf_counter_ns()
                 fn()
                 times[k].append(time.perf_counter_ns() - t0)
@@ -541,13 +546,17 @@ def print_pass(p, n, one_core=None):
 
 
 def main():
+    global PAUSE_S
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=1_000_000, help="direction pairs (default 1e6)")
     ap.add_argument("--reps", type=int, default=7, help="timed repetitions per call (default 7)")
     ap.add_argument("--quick", action="store_true", help="CI smoke run: n = 1e5, 3 repetitions")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", type=pathlib.Path, help="write every timing and the set-up to this file")
+    ap.add_argument("--pause", type=float, default=PAUSE_S,
+                    help=f"seconds between two timed calls, for idle worker pools to sleep (default {PAUSE_S})")
     args = ap.parse_args()
+    PAUSE_S = args.pause
     if args.quick:
         args.n, args.reps = 100_000, 3
 
