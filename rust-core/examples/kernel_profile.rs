@@ -5,6 +5,11 @@
 //!
 //! The last argument picks the array layout: `soa` (one array per component, what Dr.Jit hosts
 //! hold) or `xyz` (interleaved `x y z` per element, what `lq_eval` and C/C++ renderers pass).
+//!
+//! Build it with the CLI, `cargo build --release -p lacquer-cli -p lacquer --example
+//! kernel_profile`: with `-p lacquer` alone cargo resolves other features for the crates the
+//! library shares with the CLI and the test build (num-traits, syn), so it compiles the
+//! library a second time (6–7 min on this 2-core machine) instead of reusing theirs.
 use lacquer::batch::{self, Dst1, Dst3, SampleOut, Src3};
 use lacquer::Material;
 
