@@ -1619,9 +1619,8 @@ mod tests {
             let (mi, mo) = (rng.uniform().powi(3), rng.uniform().powi(3));
             let phi = 2.0 * std::f64::consts::PI * rng.uniform();
             let dphi = std::f64::consts::PI + 0.1 * (rng.uniform() - 0.5);
-            let round = |w: Vec3<f64>| Vec3::new(w.x as f32, w.y as f32, w.z as f32);
-            let wi = round(crate::frame::spherical_direction((1.0 - mi * mi).sqrt(), mi, phi));
-            let wo = round(crate::frame::spherical_direction((1.0 - mo * mo).sqrt(), mo, phi + dphi));
+            let wi = crate::frame::spherical_direction((1.0 - mi * mi).sqrt(), mi, phi).cast::<f32>();
+            let wo = crate::frame::spherical_direction((1.0 - mo * mo).sqrt(), mo, phi + dphi).cast::<f32>();
             // The f64 reference sees the f32 directions normalised in f64, as `Material` and
             // the f64 batch path do (the f32 path takes them as given: unit to ~1e-7).
             let (a, b) = (wi.cast::<f64>().normalize(), wo.cast::<f64>().normalize());
