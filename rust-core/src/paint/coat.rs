@@ -16,7 +16,7 @@
 //!
 //! (`k = 1 − 1/η` at normal incidence, → 1 at the critical angle; `k = 1` under total internal
 //! reflection, its continuation; `k = 0` for `η = 1`). The coat's facet slopes have the
-//! variance `c α_c²/2` per axis (`c` = [`GGX_SLOPE_VARIANCE`], the Beckmann equivalent of the
+//! variance `c α_c²/2` per axis (`c` = [`ggx_slope_variance`], the Beckmann equivalent of the
 //! GGX `α_c`, calibrated); a lobe of the base
 //! reflects about a normal that bisects the two blurred inside directions, so its own slope
 //! variance `α_b²/2` grows by `c (k_i² + k_o²) α_c²/8`. Around a specular lobe's peak the light
@@ -49,13 +49,22 @@ const ALBEDO_NODES: usize = 64;
 /// Low-discrepancy samples per node of the albedo table.
 const ALBEDO_SAMPLES: usize = 1024;
 
-/// The slope variance per axis of the coat's GGX facets in units of `α_c²/2` (Beckmann's):
-/// GGX slopes (a Student-t of 2 degrees of freedom) have no finite variance, so the
-/// equivalent is calibrated, as Belcour 2018 maps GGX roughness to a variance empirically:
-/// the value that minimises the lobe-shape error of a sharp metal base (α 0.05) under coats of
-/// α 0.1–0.3 at θo 0° and 40° against the lossless reference (`docs/paint-validation.md` §8;
-/// scanned at 60 000 walks: c = 1, 1.5, 1.75, 2, 2.5, 3 give largest errors of 18.1, 8.4, 7.4, 11.1, 18.2, 24.3 %).
-pub const GGX_SLOPE_VARIANCE: f64 = 1.75;
+/// The slope variance per axis of the coat's GGX facets in units of `α_c²/2` (Beckmann's),
+/// `c(α_c) = 1.7 + 3 exp(−α_c/0.08)`: GGX slopes (a Student-t of 2 degrees of freedom) have no
+/// finite variance, so the equivalent is calibrated, as Belcour 2018 maps GGX roughness to a
+/// variance empirically. A constant `c` cannot serve every roughness: the heavier the coat's
+/// tails, the less of them the blurred lobe should take. Calibrated on a sharp metal base
+/// (α 0.05) under coats of α 0.03–0.3 at θo 0°/40°/75° against the lossless reference
+/// (`docs/paint-validation.md` §8, 200 000 walks): the lobe-shape error is smallest near
+/// c ≈ 3.5 (α 0.03, the largest scanned), 2.3–2.8 (α 0.1), 2.0 (α 0.2, where more blur also
+/// darkens the grazing albedo) and 1.75 (α 0.3); this form gives 3.76, 2.56, 1.95, 1.77.
+/// (Sessions 10–22 used the constant 1.75, the best single value for α 0.1–0.3 at
+/// θo 0°/40°.)
+#[inline(always)]
+#[must_use]
+pub fn ggx_slope_variance<L: Lanes>(alpha: L) -> L {
+    L::c(1.7) + L::c(3.0) * lanes::exp(alpha * L::c(-1.0 / 0.08))
+}
 
 /// The transmission blur of a rough coat of index `ior` and GGX roughness `alpha` (see the
 /// module docs): the variance it adds to a base lobe's `α²` for the inside cosines of the two
@@ -66,9 +75,17 @@ pub struct TransmissionBlur {
     pub ior: f64,
     /// The coat's GGX `α_c`.
     pub alpha: f64,
+    /// `2 c(α_c) α_c²` ([`ggx_slope_variance`]), taken once ([`TransmissionBlur::new`]).
+    pub variance: f64,
 }
 
 impl TransmissionBlur {
+    /// The blur of a coat of index `ior` and GGX roughness `alpha`.
+    #[must_use]
+    pub fn new(ior: f64, alpha: f64) -> Self {
+        Self { ior, alpha, variance: 2.0 * ggx_slope_variance(alpha) * alpha * alpha }
+    }
+
     /// `q(μ') = k(μ')²/4` for an inside direction with cosine `mu_in` (see the module docs).
     #[inline(always)]
     #[must_use]
@@ -83,11 +100,11 @@ impl TransmissionBlur {
 
     /// `2 c α_c² q(μ')`: what the blur adds to the `α²` of a base lobe seen from an inside
     /// direction with cosine `mu_in` (both crossings at that cosine: the lobe's peak; `c` is
-    /// [`GGX_SLOPE_VARIANCE`]).
+    /// [`ggx_slope_variance`]).
     #[inline(always)]
     #[must_use]
     pub fn one_sided<L: Lanes>(&self, mu_in: L) -> L {
-        Self::one_sided_at(self.ior, L::c(self.alpha), mu_in)
+        L::c(self.variance) * Self::spread(self.ior, mu_in)
     }
 
     /// [`TransmissionBlur::one_sided`] for a coat of index `ior` and roughness `alpha` per lane
@@ -95,7 +112,7 @@ impl TransmissionBlur {
     #[inline(always)]
     #[must_use]
     pub fn one_sided_at<L: Lanes>(ior: f64, alpha: L, mu_in: L) -> L {
-        L::c(2.0 * GGX_SLOPE_VARIANCE) * (alpha * alpha) * Self::spread(ior, mu_in)
+        L::c(2.0) * ggx_slope_variance(alpha) * (alpha * alpha) * Self::spread(ior, mu_in)
     }
 }
 
@@ -321,7 +338,7 @@ impl Coat {
     /// smooth coat or `ior = 1`, which do not blur).
     #[must_use]
     pub fn transmission_blur(&self) -> Option<TransmissionBlur> {
-        (!self.is_smooth() && self.has_interface()).then_some(TransmissionBlur { ior: self.ior, alpha: self.roughness })
+        (!self.is_smooth() && self.has_interface()).then_some(TransmissionBlur::new(self.ior, self.roughness))
     }
 
     /// True when the coat absorbs.
