@@ -75,8 +75,9 @@ pub struct TransmissionBlur {
     pub ior: f64,
     /// The coat's GGX `α_c`.
     pub alpha: f64,
-    /// `2 c(α_c) α_c²` ([`ggx_slope_variance`]), taken once ([`TransmissionBlur::new`]).
-    pub variance: f64,
+    /// `2 c(α_c) α_c²` ([`ggx_slope_variance`]), derived from `alpha` once
+    /// ([`TransmissionBlur::new`], the only way to make one).
+    variance: f64,
 }
 
 impl TransmissionBlur {

@@ -23,8 +23,9 @@ use crate::table::MuTable;
 /// outweigh the widening; calibrated against the lossless reference (Al flakes 8 % under
 /// coats of α 0.1–0.3, θo 0°/40°/75°, `docs/paint-validation.md` §8): shares 0, 0.15, 0.25,
 /// 0.35, 0.5, 1 (400 000 walks for 0.15–0.35, 200 000 for the others; scanned with the
-/// constant slope-variance factor 1.75 that `coat::ggx_slope_variance` replaced) give a largest albedo error of 2.8, 2.3, 2.1, 2.3, 3.0, 3.8 %
-/// and, at θo 75°, α 0.3, a body-lobe error of 12.9, 15.0, 16.8, 18.5, 21.1, 28.4 %.
+/// constant slope-variance factor 1.75 that `coat::ggx_slope_variance` replaced) give a
+/// largest albedo error of 2.8, 2.3, 2.1, 2.3, 3.0, 3.8 % and, at θo 75°, α 0.3, a body-lobe
+/// error of 12.9, 15.0, 16.8, 18.5, 21.1, 28.4 %.
 pub const FLAKE_BLUR_SHARE: f64 = 0.25;
 
 /// Flake populations sharing one orientation distribution.
