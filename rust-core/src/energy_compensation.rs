@@ -938,13 +938,8 @@ impl AlbedoTable {
         } else {
             // `cell_lanes` keeps `j` in [0, N_MU − 2]; the lookups clamp (NaN reads node 0),
             // and their f32 nodes are the values the lanes held before (f64 rounded to f32).
-            let next = j + L::c(1.0);
-            (
-                L::lookup_f32_(&self.lane_loss, j),
-                L::lookup_f32_(&self.lane_loss, next),
-                L::lookup_f32_(&self.lane_slope, j) * h,
-                L::lookup_f32_(&self.lane_slope, next) * h,
-            )
+            let [(y0, y1), (d0, d1)] = L::lookup_pairs_f32_([self.lane_loss.as_slice(), self.lane_slope.as_slice()], j);
+            (y0, y1, d0 * h, d1 * h)
         };
         // Cubic Hermite basis.
         let f2 = f * f;

@@ -10,6 +10,9 @@ pub struct MuTable {
     /// The node values rounded to f32, one array per channel, padded with the last node to a
     /// multiple of 16 entries (at least 32) for the SIMD lookups ([`Lanes::lookup_f32_`]).
     lane_values: [Vec<f32>; 3],
+    /// `n − 1` and `n − 2` for `n` nodes, as f32 (exact): the SIMD lookups' scale and last
+    /// interval, read as f32 constants rather than converted from the length per call.
+    lane_scale: [f32; 2],
 }
 
 /// Per-channel f32 copies of `values`, padded for [`Lanes::lookup_f32_`].
@@ -35,7 +38,8 @@ impl MuTable {
     #[must_use]
     pub fn from_values(values: Vec<[f64; 3]>) -> Self {
         assert!(values.len() >= 2, "a table needs at least two nodes");
-        Self { lane_values: lane_values(&values), values }
+        let last = values.len() - 1;
+        Self { lane_values: lane_values(&values), lane_scale: [last as f32, (last - 1) as f32], values }
     }
 
     /// Node values.
@@ -57,8 +61,9 @@ impl MuTable {
     }
 
     /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
-    /// table values, rounded to f32, looked up per lane with [`Lanes::lookup_f32_`]: register
-    /// permutes for tables of up to 64 nodes with AVX-512, the hardware gather otherwise).
+    /// table values, rounded to f32, looked up per lane with [`Lanes::lookup_pairs_f32_`]:
+    /// register permutes for tables of up to 64 nodes with AVX-512, the hardware gather
+    /// otherwise).
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
@@ -68,15 +73,14 @@ impl MuTable {
             let [a, b, c] = self.eval::<L::Elem>(mu.lane(0));
             return [L::splat(a), L::splat(b), L::splat(c)];
         }
-        let last = self.values.len() - 1;
-        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(last as f64);
-        let i = lanes::min(x.floor_(), L::c((last - 1) as f64));
+        let (last, last_interval) = (L::c(f64::from(self.lane_scale[0])), L::c(f64::from(self.lane_scale[1])));
+        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * last;
+        let i = lanes::min(x.floor_(), last_interval);
         let t = x - i;
-        let next = i + L::c(1.0);
+        let [r, g, b] = &self.lane_values;
         // A plain loop, not a closure: everything here must inline into the SIMD kernels.
         let mut out = [L::c(0.0); 3];
-        for (o, v) in out.iter_mut().zip(&self.lane_values) {
-            let (a, b) = (L::lookup_f32_(v, i), L::lookup_f32_(v, next));
+        for (o, (a, b)) in out.iter_mut().zip(L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i)) {
             *o = a + (b - a) * t;
         }
         out

@@ -420,6 +420,25 @@ impl Lanes for F32x8 {
         // SAFETY: indices clamped to [0, len − 1] above; AVX2 per the module contract.
         unsafe { Self(_mm256_i32gather_ps::<4>(table.as_ptr(), _mm256_cvttps_epi32(j.0))) }
     }
+    #[inline(always)]
+    fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {
+        let len = tables[0].len();
+        debug_assert!(tables.iter().all(|t| t.len() == len && len >= 32), "tables of one padded length");
+        // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
+        let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));
+        let mut out = [(j, j); N];
+        // SAFETY: j in [0, len − 2], so j and j + 1 index every table; AVX2 per the module
+        // contract.
+        unsafe {
+            let j = _mm256_cvttps_epi32(j.0);
+            let next = _mm256_add_epi32(j, _mm256_set1_epi32(1));
+            for (o, t) in out.iter_mut().zip(tables) {
+                let p = t.as_ptr();
+                *o = (Self(_mm256_i32gather_ps::<4>(p, j)), Self(_mm256_i32gather_ps::<4>(p, next)));
+            }
+        }
+        out
+    }
 }
 
 impl Lanes for F32x16 {
@@ -615,6 +634,75 @@ impl Lanes for F32x16 {
             }
         }
     }
+    #[inline(always)]
+    fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {
+        let len = tables[0].len();
+        debug_assert!(
+            tables.iter().all(|t| t.len() == len) && len >= 32 && len.is_multiple_of(16),
+            "tables of one length, padded to 16k ≥ 32 entries"
+        );
+        // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
+        let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));
+        let mut out = [(j, j); N];
+        // SAFETY: j in [0, len − 2], so j and j + 1 index every table, and each table holds a
+        // multiple of 16 entries, so every 16-wide load is in bounds; AVX-512F per the module
+        // contract.
+        unsafe {
+            let j = _mm512_cvttps_epi32(j.0);
+            let next = _mm512_add_epi32(j, _mm512_set1_epi32(1));
+            let load = |p: *const f32, k: usize| _mm512_loadu_ps(p.add(16 * k));
+            match len {
+                // Two registers: one two-source permute per neighbour.
+                32 => {
+                    for (o, t) in out.iter_mut().zip(tables) {
+                        let (r0, r1) = (load(t.as_ptr(), 0), load(t.as_ptr(), 1));
+                        *o = (Self(_mm512_permutex2var_ps(r0, j, r1)), Self(_mm512_permutex2var_ps(r0, next, r1)));
+                    }
+                }
+                // Three registers: entries 0–31 by a two-source permute, then entries 32–47
+                // merged over it by a one-source permute (index bits 0–3) where bit 5 is set.
+                48 => {
+                    let (hi_j, hi_next) = (
+                        _mm512_test_epi32_mask(j, _mm512_set1_epi32(32)),
+                        _mm512_test_epi32_mask(next, _mm512_set1_epi32(32)),
+                    );
+                    for (o, t) in out.iter_mut().zip(tables) {
+                        let p = t.as_ptr();
+                        let (r0, r1, r2) = (load(p, 0), load(p, 1), load(p, 2));
+                        let a = _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(r0, j, r1), hi_j, j, r2);
+                        let b = _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(r0, next, r1), hi_next, next, r2);
+                        *o = (Self(a), Self(b));
+                    }
+                }
+                // Four registers: a two-source permute per half, bit 5 of the index picks it.
+                64 => {
+                    let (hi_j, hi_next) = (
+                        _mm512_test_epi32_mask(j, _mm512_set1_epi32(32)),
+                        _mm512_test_epi32_mask(next, _mm512_set1_epi32(32)),
+                    );
+                    for (o, t) in out.iter_mut().zip(tables) {
+                        let p = t.as_ptr();
+                        let (r0, r1, r2, r3) = (load(p, 0), load(p, 1), load(p, 2), load(p, 3));
+                        let pick = |k, i| {
+                            _mm512_mask_blend_ps(
+                                k,
+                                _mm512_permutex2var_ps(r0, i, r1),
+                                _mm512_permutex2var_ps(r2, i, r3),
+                            )
+                        };
+                        *o = (Self(pick(hi_j, j)), Self(pick(hi_next, next)));
+                    }
+                }
+                _ => {
+                    for (o, t) in out.iter_mut().zip(tables) {
+                        let p = t.as_ptr();
+                        *o = (Self(_mm512_i32gather_ps::<4>(j, p)), Self(_mm512_i32gather_ps::<4>(next, p)));
+                    }
+                }
+            }
+        }
+        out
+    }
 }
 
 /// `_mm512_permutex2var_ps` indices that deinterleave 16 3-vectors held in three registers
@@ -780,6 +868,39 @@ mod tests {
             assert!(div <= 2.0 && rsqrt <= 2.0 && sqrt <= 2.0, "width {w}: div {div}, rsqrt {rsqrt}, sqrt {sqrt} ulp");
             assert_eq!(L::c(0.0).sqrt_fast_().lane(0), 0.0);
         }
+        check_each_simd_type!(check);
+    }
+
+    /// The neighbour lookups of every table size (two, three and four registers, and the
+    /// gather beyond) against indexing the tables directly: every in-range index, indices
+    /// below 0 and beyond `len − 2` (clamped), and NaN (entries 0 and 1).
+    #[test]
+    fn lookup_pairs_read_both_neighbours_of_every_table_size() {
+        fn check<L: Lanes<Elem = f32>>() {
+            for len in [32usize, 48, 64, 80] {
+                let tables: [Vec<f32>; 2] =
+                    [0, 1].map(|k| (0..len).map(|i| (i * i + 7 * k) as f32 * 0.25 - 3.0).collect());
+                let mut indices: Vec<f32> = (0..len as i32 - 1).map(|i| i as f32).collect();
+                indices.extend([-5.0, -1.0, (len - 1) as f32, (len + 9) as f32, 1e9, f32::NAN]);
+                for group in indices.chunks(L::WIDTH) {
+                    let idx = L::from_fn(|i| group.get(i).copied().unwrap_or(0.0));
+                    let got = L::lookup_pairs_f32_([tables[0].as_slice(), tables[1].as_slice()], idx);
+                    for (lane, &x) in group.iter().enumerate() {
+                        let j = if x.is_nan() { 0 } else { x.clamp(0.0, (len - 2) as f32) as usize };
+                        for (t, (a, b)) in got.iter().enumerate() {
+                            let want = (tables[t][j], tables[t][j + 1]);
+                            assert_eq!(
+                                (a.lane(lane), b.lane(lane)),
+                                want,
+                                "width {}, len {len}, index {x}, table {t}",
+                                L::WIDTH
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        check::<f32>();
         check_each_simd_type!(check);
     }
 }

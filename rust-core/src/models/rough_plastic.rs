@@ -332,8 +332,7 @@ impl PlasticTables {
         // NaN lanes read node 0 (and give NaN through `w`).
         let i = lanes::min(x.floor_(), L::c((RES - 2) as f64));
         let w = x - i;
-        let v0 = L::lookup_f32_(&self.lane_transmittance, i);
-        let v1 = L::lookup_f32_(&self.lane_transmittance, i + L::c(1.0));
+        let [(v0, v1)] = L::lookup_pairs_f32_([self.lane_transmittance.as_slice()], i);
         v0 + (v1 - v0) * w
     }
 }
