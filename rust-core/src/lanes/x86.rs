@@ -651,6 +651,9 @@ impl Lanes for F32x16 {
             let j = _mm512_cvttps_epi32(j.0);
             let next = _mm512_add_epi32(j, _mm512_set1_epi32(1));
             let load = |p: *const f32, k: usize| _mm512_loadu_ps(p.add(16 * k));
+            // Bit 5 of each index: the entry is in the upper part of a 48- or 64-entry table.
+            let hi_j = _mm512_test_epi32_mask(j, _mm512_set1_epi32(32));
+            let hi_next = _mm512_test_epi32_mask(next, _mm512_set1_epi32(32));
             match len {
                 // Two registers: one two-source permute per neighbour.
                 32 => {
@@ -662,10 +665,6 @@ impl Lanes for F32x16 {
                 // Three registers: entries 0–31 by a two-source permute, then entries 32–47
                 // merged over it by a one-source permute (index bits 0–3) where bit 5 is set.
                 48 => {
-                    let (hi_j, hi_next) = (
-                        _mm512_test_epi32_mask(j, _mm512_set1_epi32(32)),
-                        _mm512_test_epi32_mask(next, _mm512_set1_epi32(32)),
-                    );
                     for (o, t) in out.iter_mut().zip(tables) {
                         let p = t.as_ptr();
                         let (r0, r1, r2) = (load(p, 0), load(p, 1), load(p, 2));
@@ -676,10 +675,6 @@ impl Lanes for F32x16 {
                 }
                 // Four registers: a two-source permute per half, bit 5 of the index picks it.
                 64 => {
-                    let (hi_j, hi_next) = (
-                        _mm512_test_epi32_mask(j, _mm512_set1_epi32(32)),
-                        _mm512_test_epi32_mask(next, _mm512_set1_epi32(32)),
-                    );
                     for (o, t) in out.iter_mut().zip(tables) {
                         let p = t.as_ptr();
                         let (r0, r1, r2, r3) = (load(p, 0), load(p, 1), load(p, 2), load(p, 3));
