@@ -78,9 +78,11 @@ impl MuTable {
         let i = lanes::min(x.floor_(), last_interval);
         let t = x - i;
         let [r, g, b] = &self.lane_values;
-        // A plain loop, not a closure: everything here must inline into the SIMD kernels.
+        let pairs = L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i);
+        // A plain loop over indices, not a closure or an array's by-value iterator: everything
+        // here must inline into the SIMD kernels cheaply.
         let mut out = [L::c(0.0); 3];
-        for (o, (a, b)) in out.iter_mut().zip(L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i)) {
+        for (o, &(a, b)) in out.iter_mut().zip(pairs.iter()) {
             *o = a + (b - a) * t;
         }
         out

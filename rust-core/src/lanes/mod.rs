@@ -198,7 +198,7 @@ pub trait Lanes:
         });
         let next = j + Self::c(1.0);
         let mut out = [(j, j); N];
-        for (o, t) in out.iter_mut().zip(tables) {
+        for (o, t) in out.iter_mut().zip(tables.iter()) {
             *o = (Self::lookup_f32_(t, j), Self::lookup_f32_(t, next));
         }
         out

@@ -432,7 +432,7 @@ impl Lanes for F32x8 {
         unsafe {
             let j = _mm256_cvttps_epi32(j.0);
             let next = _mm256_add_epi32(j, _mm256_set1_epi32(1));
-            for (o, t) in out.iter_mut().zip(tables) {
+            for (o, t) in out.iter_mut().zip(tables.iter()) {
                 let p = t.as_ptr();
                 *o = (Self(_mm256_i32gather_ps::<4>(p, j)), Self(_mm256_i32gather_ps::<4>(p, next)));
             }
@@ -657,7 +657,7 @@ impl Lanes for F32x16 {
             match len {
                 // Two registers: one two-source permute per neighbour.
                 32 => {
-                    for (o, t) in out.iter_mut().zip(tables) {
+                    for (o, t) in out.iter_mut().zip(tables.iter()) {
                         let (r0, r1) = (load(t.as_ptr(), 0), load(t.as_ptr(), 1));
                         *o = (Self(_mm512_permutex2var_ps(r0, j, r1)), Self(_mm512_permutex2var_ps(r0, next, r1)));
                     }
@@ -665,7 +665,7 @@ impl Lanes for F32x16 {
                 // Three registers: entries 0–31 by a two-source permute, then entries 32–47
                 // merged over it by a one-source permute (index bits 0–3) where bit 5 is set.
                 48 => {
-                    for (o, t) in out.iter_mut().zip(tables) {
+                    for (o, t) in out.iter_mut().zip(tables.iter()) {
                         let p = t.as_ptr();
                         let (r0, r1, r2) = (load(p, 0), load(p, 1), load(p, 2));
                         let a = _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(r0, j, r1), hi_j, j, r2);
@@ -675,7 +675,7 @@ impl Lanes for F32x16 {
                 }
                 // Four registers: a two-source permute per half, bit 5 of the index picks it.
                 64 => {
-                    for (o, t) in out.iter_mut().zip(tables) {
+                    for (o, t) in out.iter_mut().zip(tables.iter()) {
                         let p = t.as_ptr();
                         let (r0, r1, r2, r3) = (load(p, 0), load(p, 1), load(p, 2), load(p, 3));
                         let pick = |k, i| {
@@ -689,7 +689,7 @@ impl Lanes for F32x16 {
                     }
                 }
                 _ => {
-                    for (o, t) in out.iter_mut().zip(tables) {
+                    for (o, t) in out.iter_mut().zip(tables.iter()) {
                         let p = t.as_ptr();
                         *o = (Self(_mm512_i32gather_ps::<4>(j, p)), Self(_mm512_i32gather_ps::<4>(next, p)));
                     }
