@@ -936,7 +936,7 @@ impl AlbedoTable {
             let at = |v: &[f64], i: usize| L::splat(L::Elem::of(v[i]));
             (at(&self.loss, i), at(&self.loss, i + 1), at(&self.slope, i) * h, at(&self.slope, i + 1) * h)
         } else {
-            // `cell_lanes` keeps `j` in [0, N_MU − 2]; the lookups clamp (NaN reads node 0),
+            // `cell_lanes` keeps `j` in [0, N_MU − 2]; the lookups clamp (NaN reads nodes 0, 1),
             // and their f32 nodes are the values the lanes held before (f64 rounded to f32).
             let [(y0, y1), (d0, d1)] = L::lookup_pairs_f32_([self.lane_loss.as_slice(), self.lane_slope.as_slice()], j);
             (y0, y1, d0 * h, d1 * h)

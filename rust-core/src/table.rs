@@ -79,8 +79,8 @@ impl MuTable {
         let t = x - i;
         let [r, g, b] = &self.lane_values;
         let pairs = L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i);
-        // A plain loop over indices, not a closure or an array's by-value iterator: everything
-        // here must inline into the SIMD kernels cheaply.
+        // A plain loop by reference, not a closure (which may not inline into the SIMD
+        // kernels) nor an array's by-value iterator (which cost the release build 20 %).
         let mut out = [L::c(0.0); 3];
         for (o, &(a, b)) in out.iter_mut().zip(pairs.iter()) {
             *o = a + (b - a) * t;

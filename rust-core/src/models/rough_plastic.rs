@@ -329,7 +329,7 @@ impl PlasticTables {
             let (v0, v1) = (L::c(self.transmittance[i]), L::c(self.transmittance[i + 1]));
             return v0 + (v1 - v0) * w;
         }
-        // NaN lanes read node 0 (and give NaN through `w`).
+        // NaN lanes read nodes 0 and 1 (and give NaN through `w`).
         let i = lanes::min(x.floor_(), L::c((RES - 2) as f64));
         let w = x - i;
         let [(v0, v1)] = L::lookup_pairs_f32_([self.lane_transmittance.as_slice()], i);
