@@ -185,13 +185,14 @@ pub trait Lanes:
     }
     /// `(table[i], table[i + 1])` per lane for each of `tables`, for lanes `idx` holding
     /// integral values in `[0, len − 2]` (clamped to it; NaN reads entries 0 and 1): the two
-    /// neighbours a linear interpolation needs. Every table has the same length, a multiple
-    /// of 16 and at least 32, as for [`Lanes::lookup_f32_`], whose values these are. SIMD
+    /// neighbours a linear interpolation needs. The tables are of one length, a multiple of
+    /// 16 and at least 32, as for [`Lanes::lookup_f32_`], whose values these are (with
+    /// tables of different lengths the shortest bounds the index). SIMD
     /// lanes convert the index and pick the lookup for the table size once for all the
     /// tables and load each table's registers once for both neighbours.
     #[inline(always)]
     fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {
-        let last = (tables[0].len() - 2) as f64;
+        let last = (tables.iter().fold(usize::MAX, |m, t| m.min(t.len())) - 2) as f64;
         let j = Self::from_fn(|i| {
             let j = idx.lane(i).f64();
             Self::Elem::of(if j > 0.0 { j.min(last) } else { 0.0 })

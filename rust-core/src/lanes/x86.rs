@@ -422,13 +422,15 @@ impl Lanes for F32x8 {
     }
     #[inline(always)]
     fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {
-        let len = tables[0].len();
-        debug_assert!(tables.iter().all(|t| t.len() == len && len >= 32), "tables of one padded length");
+        // The shortest table bounds the index (the tables are meant to be of one length), so
+        // every read below is in bounds whatever the caller passes.
+        let len = tables.iter().fold(usize::MAX, |m, t| m.min(t.len()));
+        assert!((2..usize::MAX).contains(&len), "lookup tables need at least two entries");
         // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));
         let mut out = [(j, j); N];
-        // SAFETY: j in [0, len − 2], so j and j + 1 index every table; AVX2 per the module
-        // contract.
+        // SAFETY: j in [0, len − 2] and every table holds at least len entries, so j and j + 1
+        // index every table; AVX2 per the module contract.
         unsafe {
             let j = _mm256_cvttps_epi32(j.0);
             let next = _mm256_add_epi32(j, _mm256_set1_epi32(1));
@@ -636,17 +638,17 @@ impl Lanes for F32x16 {
     }
     #[inline(always)]
     fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {
-        let len = tables[0].len();
-        debug_assert!(
-            tables.iter().all(|t| t.len() == len) && len >= 32 && len.is_multiple_of(16),
-            "tables of one length, padded to 16k ≥ 32 entries"
-        );
+        // The shortest table bounds the index and picks the lookup (the tables are meant to be
+        // of one length), so every read below is in bounds whatever the caller passes.
+        let len = tables.iter().fold(usize::MAX, |m, t| m.min(t.len()));
+        assert!((2..usize::MAX).contains(&len), "lookup tables need at least two entries");
+        debug_assert!(len >= 32 && len.is_multiple_of(16), "tables padded to 16k ≥ 32 entries");
         // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));
         let mut out = [(j, j); N];
-        // SAFETY: j in [0, len − 2], so j and j + 1 index every table, and each table holds a
-        // multiple of 16 entries, so every 16-wide load is in bounds; AVX-512F per the module
-        // contract.
+        // SAFETY: j in [0, len − 2] and every table holds at least len entries, so j and j + 1
+        // index every table, and the register loads read entries below 32, 48 or 64 only when
+        // len is that; AVX-512F per the module contract.
         unsafe {
             let j = _mm512_cvttps_epi32(j.0);
             let next = _mm512_add_epi32(j, _mm512_set1_epi32(1));
