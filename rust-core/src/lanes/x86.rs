@@ -870,7 +870,8 @@ mod tests {
 
     /// The neighbour lookups of every table size (two, three and four registers, and the
     /// gather beyond) against indexing the tables directly: every in-range index, indices
-    /// below 0 and beyond `len − 2` (clamped), and NaN (entries 0 and 1).
+    /// below 0 and beyond `len − 2` (clamped), and NaN (entries 0 and 1); tables of different
+    /// lengths are read within the shortest.
     #[test]
     fn lookup_pairs_read_both_neighbours_of_every_table_size() {
         fn check<L: Lanes<Elem = f32>>() {
@@ -896,6 +897,13 @@ mod tests {
                     }
                 }
             }
+            // Tables of different lengths (not how the crate calls it): the shortest bounds
+            // the index, and nothing is read beyond it.
+            let long: Vec<f32> = (0..64).map(|i| i as f32).collect();
+            let short: Vec<f32> = (0..48).map(|i| -(i as f32)).collect();
+            let got = L::lookup_pairs_f32_([long.as_slice(), short.as_slice()], L::splat(100.0));
+            let lane0 = (got[0].0.lane(0), got[0].1.lane(0), got[1].0.lane(0), got[1].1.lane(0));
+            assert_eq!(lane0, (46.0, 47.0, -46.0, -47.0), "width {}", L::WIDTH);
         }
         check::<f32>();
         check_each_simd_type!(check);
