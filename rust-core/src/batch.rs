@@ -585,6 +585,18 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
             report.record(start, width, on & !ok, L::Mask::splat(false));
         }
         let keep = on & ok & L::Mask::splat(!nothing);
+        if let (true, Some(f), Some(pdf), None, None) = (K::SHARES_EVAL_PDF, f, pdf, scale, lobes) {
+            // Both outputs of a model whose value and density share work: one call.
+            let (v, p) = model.eval_pdf(a, o);
+            let v = Rgb::select(keep, v, Rgb::zero());
+            // SAFETY: as below.
+            unsafe {
+                store3(f, start, width, [v.r, v.g, v.b]);
+                store1(pdf, start, width, lanes::keep(keep, p));
+            }
+            start += width;
+            continue;
+        }
         if let Some(f) = f {
             let one = <L::Elem as Real>::of(1.0);
             let v = match (scale, lobes) {

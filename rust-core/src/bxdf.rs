@@ -117,6 +117,14 @@ pub trait LaneBxdf {
         let _ = lobes;
         self.sample_lanes(wo, u)
     }
+    /// True when [`LaneBxdf::eval_pdf_lanes`] shares work between the value and the density
+    /// (the batch calls that want both then call it instead of the two methods).
+    const SHARES_EVAL_PDF: bool = false;
+    /// [`LaneBxdf::eval_lanes`] and [`LaneBxdf::pdf_lanes`] together: the same results.
+    #[inline(always)]
+    fn eval_pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
+        (self.eval_lanes(wi, wo), self.pdf_lanes(wi, wo))
+    }
 }
 
 /// Implements [`Bxdf`] for a [`LaneBxdf`] model by calling its lane methods with a one-lane

@@ -143,6 +143,31 @@ pub fn half_vector_masked<T: Lanes>(wi: Vec3<T>, wo: Vec3<T>) -> (Vec3<T>, T::Ma
     (h * lanes::rsqrt_fast(len2), defined)
 }
 
+/// Two directions and their half vector, per lane: what a microfacet lobe's value and its
+/// density share, computed once when a caller needs both (sampling: the value and the density
+/// at the drawn direction).
+#[derive(Clone, Copy, Debug)]
+pub struct HalfPair<T: Lanes> {
+    /// The incident direction.
+    pub wi: Vec3<T>,
+    /// The outgoing direction.
+    pub wo: Vec3<T>,
+    /// The unit half vector ([`half_vector_masked`]; meaningless where not `defined`).
+    pub h: Vec3<T>,
+    /// Where the half vector exists: `wi + wo` non-zero and finite.
+    pub defined: T::Mask,
+}
+
+impl<T: Lanes> HalfPair<T> {
+    /// `wi`, `wo` and their half vector.
+    #[inline(always)]
+    #[must_use]
+    pub fn new(wi: Vec3<T>, wo: Vec3<T>) -> Self {
+        let (h, defined) = half_vector_masked(wi, wo);
+        Self { wi, wo, h, defined }
+    }
+}
+
 /// Builds a unit direction from spherical coordinates.
 #[inline]
 #[must_use]

@@ -185,10 +185,25 @@ impl<T: Lanes> Microfacet<T> {
     #[inline(always)]
     #[must_use]
     pub fn reflection_dg(&self, wi: Vec3<T>, wo: Vec3<T>, m: Vec3<T>, masking: MaskingKind) -> (T, T::Mask) {
+        let (dg, positive, _) = self.reflection_dg_pdf(wi, wo, m, masking);
+        (dg, positive)
+    }
+
+    /// [`Self::reflection_dg`] and, at the same pair, the density of visible-normal reflection
+    /// sampling `G1(wo) D(m) / (4 cos θo)` ([`Self::reflection_pdf`] with `visible`, `m` the
+    /// half vector; 0 unless `cos θo > 0` and `wo·m > 0`). For GGX the two share `D(m)`'s
+    /// denominator and the masking root of `wo`: `G1(wo) = 2 cos θo/(cos θo + S(wo))`, so the
+    /// density is `1/(2 π αx αy t² (cos θo + S(wo)))`: one more division where the separate
+    /// density takes `D`, `G1` and two divisions.
+    #[inline(always)]
+    #[must_use]
+    pub fn reflection_dg_pdf(&self, wi: Vec3<T>, wo: Vec3<T>, m: Vec3<T>, masking: MaskingKind) -> (T, T::Mask, T) {
         let zero = T::c(0.0);
+        let om = wo.dot(m);
+        let sampled = gt(wo.z, zero) & gt(om, zero);
         if self.kind == DistributionKind::Ggx && masking != MaskingKind::VGroove {
             let (zi, zo) = (wi.z, wo.z);
-            let seen = gt(zi, zero) & gt(zo, zero) & gt(wi.dot(m), zero) & gt(wo.dot(m), zero);
+            let seen = gt(zi, zero) & gt(zo, zero) & gt(wi.dot(m), zero) & gt(om, zero);
             // Not a closure: closures are not inlined into the `#[target_feature]` kernels.
             let (si, so) = (self.ggx_root(wi), self.ggx_root(wo));
             let visibility_denominator = match masking {
@@ -199,10 +214,13 @@ impl<T: Lanes> Microfacet<T> {
             let t = sx * sx + sy * sy + m.z * m.z;
             let d_denominator = T::c(std::f64::consts::PI) * self.alpha_x * self.alpha_y * t * t;
             let value = lanes::div_fast(T::c(1.0), d_denominator * visibility_denominator);
-            return (keep(seen & gt(m.z, zero), value), seen);
+            let pdf = lanes::div_fast(T::c(1.0), d_denominator * (T::c(2.0) * (zo + so)));
+            let upper = gt(m.z, zero);
+            return (keep(seen & upper, value), seen, keep(sampled & upper, pdf));
         }
-        let g = self.g(wi, wo, m, masking);
-        (lanes::div_fast(self.d(m) * g, T::c(4.0) * wi.z * wo.z), gt(g, zero))
+        let (d, g) = (self.d(m), self.g(wi, wo, m, masking));
+        let pdf = keep(sampled, lanes::div_fast(self.g1(wo, m) * d, T::c(4.0) * wo.z));
+        (lanes::div_fast(d * g, T::c(4.0) * wi.z * wo.z), gt(g, zero), pdf)
     }
 
     /// `√(cos²θ + α²sin²θ)` of `w` with the anisotropic `α` (GGX's masking root).

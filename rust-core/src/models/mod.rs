@@ -493,6 +493,14 @@ pub trait LaneKernel: Sync {
         let _ = lobes;
         self.eval_scaled(wi, wo, scale)
     }
+    /// True when [`LaneKernel::eval_pdf`] shares work between the value and the density
+    /// ([`LaneBxdf::SHARES_EVAL_PDF`]).
+    const SHARES_EVAL_PDF: bool = false;
+    /// [`LaneKernel::eval`] and [`LaneKernel::pdf`] together: the same results.
+    #[inline(always)]
+    fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
+        (self.eval(wi, wo), self.pdf(wi, wo))
+    }
     /// [`LaneKernel::pdf`] of [`LaneKernel::sample_lobes`].
     #[inline(always)]
     fn pdf_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, lobes: u32) -> L {
@@ -543,6 +551,13 @@ pub(crate) fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> Lane
 
 impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
     const NATIVE: bool = true;
+    const SHARES_EVAL_PDF: bool = B::SHARES_EVAL_PDF;
+    #[inline(always)]
+    fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
+        let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));
+        let (f, pdf) = self.0.eval_pdf_lanes(above_or_up(above, wi), above_or_up(above, wo));
+        (Rgb::select(above, f, Rgb::zero()), lanes::keep(above, pdf))
+    }
     #[inline(always)]
     fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));

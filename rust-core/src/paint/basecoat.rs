@@ -11,7 +11,7 @@ use super::coat::TransmissionBlur;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use crate::bxdf::BsdfSample;
-use crate::frame::half_vector_masked;
+use crate::frame::HalfPair;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::{Rgb, Vec3};
@@ -46,11 +46,6 @@ impl MetalBase {
         Microfacet::new(DistributionKind::Ggx, a, a)
     }
 
-    #[inline(always)]
-    pub(crate) fn eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        self.eval_with(&self.microfacet::<T>(), None, Rgb::from_array(self.f0), T::c(self.weight), wi, wo)
-    }
-
     /// The lobe `F D G / (4 cos θi cos θo)` with the distribution `mf`, Schlick's `f0` and the
     /// weight `weight` (the per-element path passes its own); under a rough coat with `other`
     /// the smaller of the two lobes' `D G` (the blurred lobes seen from `wo` and from `wi`,
@@ -65,7 +60,20 @@ impl MetalBase {
         wi: Vec3<T>,
         wo: Vec3<T>,
     ) -> Rgb<T> {
-        let (h, defined) = half_vector_masked(wi, wo);
+        self.eval_with_h(mf, other, f0, weight, &HalfPair::new(wi, wo))
+    }
+
+    /// [`MetalBase::eval_with`] of a pair whose half vector is known.
+    #[inline(always)]
+    pub(crate) fn eval_with_h<T: Lanes>(
+        &self,
+        mf: &Microfacet<T>,
+        other: Option<&Microfacet<T>>,
+        f0: Rgb<T>,
+        weight: T,
+        pair: &HalfPair<T>,
+    ) -> Rgb<T> {
+        let HalfPair { wi, wo, h, defined } = *pair;
         let (f, ok) = match other {
             None => {
                 let (dg, g_positive) = mf.reflection_dg(wi, wo, h, MaskingKind::HeightCorrelated);
@@ -91,8 +99,13 @@ impl MetalBase {
     /// Density of sampling `wi` by the visible normals of `mf` seen from `wo`.
     #[inline(always)]
     pub(crate) fn pdf_with<T: Lanes>(mf: &Microfacet<T>, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        let (h, defined) = half_vector_masked(wi, wo);
-        keep(defined, mf.visible_d(wo, h) * reflection_jacobian(wo, h))
+        Self::pdf_with_h(mf, &HalfPair::new(wi, wo))
+    }
+
+    /// [`MetalBase::pdf_with`] of a pair whose half vector is known.
+    #[inline(always)]
+    pub(crate) fn pdf_with_h<T: Lanes>(mf: &Microfacet<T>, pair: &HalfPair<T>) -> T {
+        keep(pair.defined, mf.visible_d(pair.wo, pair.h) * reflection_jacobian(pair.wo, pair.h))
     }
 
     #[inline(always)]
@@ -120,6 +133,20 @@ pub struct BaseParts {
 impl BaseParts {
     /// Every lobe.
     pub const ALL: Self = Self { pigment: true, glossy: true };
+}
+
+/// What the basecoat's value and its density share at one pair of inside directions, per
+/// lane ([`Basecoat::pair`]): the half vector, the transmission blur at both directions, and
+/// the flakes' `D(h)` for the distribution seen from `wo` (the value's and the projected-area
+/// density's).
+#[derive(Clone, Copy, Debug)]
+pub struct BasePair<T: Lanes> {
+    /// The directions and their half vector.
+    pub half: HalfPair<T>,
+    /// The blur's added `α²` at `wi` and at `wo` (None without the blur).
+    added: Option<(T, T)>,
+    /// `D(h)` of the flakes' distribution blurred at `wo` (0 without flakes).
+    flake_d: T,
 }
 
 /// The basecoat.
@@ -241,15 +268,55 @@ impl Basecoat {
         pearl_scale: T,
         parts: BaseParts,
     ) -> Rgb<T> {
-        let mut f = if parts.pigment { self.pigment_eval(wi, wo) } else { Rgb::zero() };
+        self.eval_pair(&self.pair(wi, wo), metal_scale, pearl_scale, parts)
+    }
+
+    /// The transmission blur's added `α²` for an inside direction with cosine `mu_in`
+    /// ([`TransmissionBlur::one_sided`]; None without the blur).
+    #[inline(always)]
+    #[must_use]
+    pub fn blur_added<T: Lanes>(&self, mu_in: T) -> Option<T> {
+        self.blur.map(|b| b.one_sided(mu_in))
+    }
+
+    /// What the value and the density share at `wi`, `wo` ([`BasePair`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn pair<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> BasePair<T> {
+        self.pair_at(wi, wo, self.blur_added(wo.z))
+    }
+
+    /// [`Basecoat::pair`] with the blur at `wo` already known: `added_o` must be
+    /// [`Basecoat::blur_added`]`(wo.z)` (the sampler computes it too).
+    #[inline(always)]
+    #[must_use]
+    pub(crate) fn pair_at<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, added_o: Option<T>) -> BasePair<T> {
+        let half = HalfPair::new(wi, wo);
+        let added = match (&self.blur, added_o) {
+            (Some(b), Some(o)) => Some((b.one_sided(wi.z), o)),
+            _ => None,
+        };
+        let flake_d = match (&self.flakes, added) {
+            (None, _) => T::c(0.0),
+            (Some(f), None) => f.microfacet::<T>().d(half.h),
+            (Some(f), Some((_, o))) => f.blurred(o).d(half.h),
+        };
+        BasePair { half, added, flake_d }
+    }
+
+    /// [`Basecoat::eval_parts`] at a [`BasePair`].
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_pair<T: Lanes>(&self, p: &BasePair<T>, metal_scale: T, pearl_scale: T, parts: BaseParts) -> Rgb<T> {
+        let mut f = if parts.pigment { self.pigment_eval(p.half.wi, p.half.wo) } else { Rgb::zero() };
         if !parts.glossy {
             return f;
         }
         if self.metal.is_some() {
-            f += self.metal_eval(wi, wo);
+            f += self.metal_eval_pair(p);
         }
         if self.flakes.is_some() {
-            f += self.flakes_eval(wi, wo, metal_scale, pearl_scale);
+            f += self.flakes_eval_pair(p, metal_scale, pearl_scale);
         }
         f
     }
@@ -259,12 +326,19 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn flakes_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
+        self.flakes_eval_pair(&self.pair(wi, wo), metal_scale, pearl_scale)
+    }
+
+    /// [`Basecoat::flakes_eval`] at a [`BasePair`].
+    #[inline(always)]
+    #[must_use]
+    pub fn flakes_eval_pair<T: Lanes>(&self, p: &BasePair<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let Some(fl) = &self.flakes else { return Rgb::zero() };
-        match &self.blur {
-            None => fl.eval_scaled(wi, wo, metal_scale, pearl_scale),
-            Some(b) => {
-                let (a, o) = (fl.blurred(b.one_sided(wi.z)), fl.blurred(b.one_sided(wo.z)));
-                fl.eval_scaled_with(&o, Some(&a), wi, wo, metal_scale, pearl_scale)
+        match p.added {
+            None => fl.eval_scaled_h(&fl.microfacet::<T>(), p.flake_d, None, &p.half, metal_scale, pearl_scale),
+            Some((ai, ao)) => {
+                let (a, o) = (fl.blurred(ai), fl.blurred(ao));
+                fl.eval_scaled_h(&o, p.flake_d, Some(&a), &p.half, metal_scale, pearl_scale)
             }
         }
     }
@@ -273,13 +347,18 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn metal_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
+        self.metal_eval_pair(&self.pair(wi, wo))
+    }
+
+    /// [`Basecoat::metal_eval`] at a [`BasePair`].
+    #[inline(always)]
+    #[must_use]
+    pub fn metal_eval_pair<T: Lanes>(&self, p: &BasePair<T>) -> Rgb<T> {
         let Some(m) = &self.metal else { return Rgb::zero() };
-        match &self.blur {
-            None => m.eval(wi, wo),
-            Some(b) => {
-                let (a, o) = (m.blurred(b.one_sided(wi.z)), m.blurred(b.one_sided(wo.z)));
-                m.eval_with(&o, Some(&a), Rgb::from_array(m.f0), T::c(m.weight), wi, wo)
-            }
+        let (f0, weight) = (Rgb::from_array(m.f0), T::c(m.weight));
+        match p.added {
+            None => m.eval_with_h(&m.microfacet::<T>(), None, f0, weight, &p.half),
+            Some((ai, ao)) => m.eval_with_h(&m.blurred(ao), Some(&m.blurred(ai)), f0, weight, &p.half),
         }
     }
 
@@ -335,31 +414,43 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn pdf_parts_by<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: BaseParts, sampler: FlakeSampler) -> T {
+        self.pdf_pair_by(&self.pair(wi, wo), parts, sampler)
+    }
+
+    /// [`Basecoat::pdf_parts`] at a [`BasePair`].
+    #[inline(always)]
+    #[must_use]
+    pub fn pdf_pair<T: Lanes>(&self, p: &BasePair<T>, parts: BaseParts) -> T {
+        self.pdf_pair_by(p, parts, FlakeSampler::Projected)
+    }
+
+    /// [`Basecoat::pdf_parts_by`] at a [`BasePair`].
+    #[inline(always)]
+    #[must_use]
+    fn pdf_pair_by<T: Lanes>(&self, pair: &BasePair<T>, parts: BaseParts, sampler: FlakeSampler) -> T {
         let sel = self.selection_of(parts);
         let [a, b, c] = sel.map(T::c);
         if !(sel.iter().sum::<f64>() > 0.0) {
             return T::c(0.0);
         }
         let total = a + b + c;
-        let mut p = a * cosine_hemisphere_pdf(wi.z);
-        match &self.blur {
-            None => {
-                if let Some(m) = self.metal.as_ref().filter(|_| parts.glossy) {
-                    p += b * m.pdf(wi, wo);
-                }
-                if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
-                    p += c * FlakeLayer::pdf_by(&f.microfacet::<T>(), wi, wo, sampler);
-                }
-            }
-            Some(blur) => {
-                let added = blur.one_sided(wo.z);
-                if let Some(m) = self.metal.as_ref().filter(|_| parts.glossy) {
-                    p += b * MetalBase::pdf_with(&m.blurred(added), wi, wo);
-                }
-                if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
-                    p += c * FlakeLayer::pdf_by(&f.blurred(added), wi, wo, sampler);
-                }
-            }
+        let half = &pair.half;
+        let mut p = a * cosine_hemisphere_pdf(half.wi.z);
+        if let Some(m) = self.metal.as_ref().filter(|_| parts.glossy) {
+            let mf = match pair.added {
+                None => m.microfacet::<T>(),
+                Some((_, o)) => m.blurred(o),
+            };
+            p += b * MetalBase::pdf_with_h(&mf, half);
+        }
+        if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
+            p += c * match sampler {
+                FlakeSampler::Projected => FlakeLayer::projected_pdf_h(pair.flake_d, half),
+                FlakeSampler::Visible => match pair.added {
+                    None => FlakeLayer::visible_pdf_h(&f.microfacet::<T>(), half),
+                    Some((_, o)) => FlakeLayer::visible_pdf_h(&f.blurred(o), half),
+                },
+            };
         }
         lanes::div_fast(p, total)
     }
@@ -406,6 +497,22 @@ impl Basecoat {
         parts: BaseParts,
         sampler: FlakeSampler,
     ) -> (Vec3<T>, T::Mask) {
+        self.sample_direction_at(wo, u, active, parts, sampler, self.blur_added(wo.z))
+    }
+
+    /// [`Basecoat::sample_direction_parts_by`] with the blur at `wo` already known: `added`
+    /// must be [`Basecoat::blur_added`]`(wo.z)`.
+    #[inline(always)]
+    #[must_use]
+    pub(crate) fn sample_direction_at<T: Lanes>(
+        &self,
+        wo: Vec3<T>,
+        u: [T; 3],
+        active: T::Mask,
+        parts: BaseParts,
+        sampler: FlakeSampler,
+        added: Option<T>,
+    ) -> (Vec3<T>, T::Mask) {
         let pick = pick3(self.selection_of(parts).map(T::c), u[0]);
         // Each lobe's sampler runs only when an active lane chose it (one lane: only the
         // chosen one, so the scalar paths pay for one sampler, not three).
@@ -414,7 +521,6 @@ impl Basecoat {
         if pigment.any() {
             wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
-        let added = self.blur.map(|b| b.one_sided(wo.z));
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
             let w = match added {
                 None => m.sample_direction(wo, u[1], u[2]),

@@ -35,11 +35,11 @@
 //! factors of the refraction), made symmetric so that the
 //! layered BRDF stays reciprocal. The blur vanishes as `α_c → 0` (a smooth coat has none).
 
-use crate::frame::half_vector_masked;
+use crate::frame::HalfPair;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes};
 use crate::math::Vec3;
-use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Microfacet};
+use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
 use crate::sampling::cosine_hemisphere_pdf;
 use crate::table::MuTable;
@@ -136,6 +136,29 @@ pub struct Coat {
     /// `g(μ)`, the crossing factor of the light that crosses the coat twice (rough coats
     /// only; see [`Coat::crossing`]).
     crossing: Option<MuTable>,
+    /// `E_top(μ)`, `ΔR(μ)` and `g(μ)` as the three channels of one table (rough coats only):
+    /// [`Coat::at`] reads all three with one index computation.
+    factors: Option<MuTable>,
+}
+
+/// The coat's factors at one outside cosine `μ`, per lane ([`Coat::at`]).
+#[derive(Clone, Copy, Debug)]
+pub struct CoatAt<T> {
+    /// Energy the top surface reflects: [`Coat::reflectance`].
+    pub reflectance: T,
+    /// The multiple-scattering reflection `ΔR(μ)`: [`Coat::ms_albedo`] (0 for a smooth coat).
+    pub ms: T,
+    /// The crossing factor `g(μ)`: [`Coat::crossing`].
+    pub crossing: T,
+}
+
+impl<T: Lanes> CoatAt<T> {
+    /// Energy that enters the coat: [`Coat::transmittance`], `max(1 − reflectance − ΔR, 0)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn transmittance(&self) -> T {
+        lanes::max(T::c(1.0) - self.reflectance - self.ms, T::c(0.0))
+    }
 }
 
 /// The rough coat's multiple-scattering reflection (issue 17, item 3): the energy Walter's
@@ -308,14 +331,40 @@ impl Coat {
             albedo: None,
             ms: None,
             crossing: None,
+            factors: None,
         };
         if !coat.is_smooth() && coat.has_interface() {
             let (albedo, loss) = coat.tabulate_albedo();
+            let ms = coat.build_multiple_scattering(&loss);
+            let top: Vec<(f64, f64)> =
+                albedo.values().iter().zip(ms.albedo.values()).map(|(r, m)| (r[0], m[0])).collect();
             coat.albedo = Some(albedo);
-            coat.ms = Some(coat.build_multiple_scattering(&loss));
-            coat.crossing = Some(coat.tabulate_crossing());
+            coat.ms = Some(ms);
+            // `g` from `E_top` and `ΔR` (set above).
+            let crossing = coat.tabulate_crossing();
+            let factors = top.iter().zip(crossing.values()).map(|(&(r, m), g)| [r, m, g[0]]).collect();
+            coat.factors = Some(MuTable::from_values(factors));
+            coat.crossing = Some(crossing);
         }
         coat
+    }
+
+    /// [`Coat::reflectance`], [`Coat::ms_albedo`] and [`Coat::crossing`] at `mu`, with one
+    /// table lookup for a rough coat (the same table values, so the same results as the three
+    /// calls).
+    #[inline(always)]
+    #[must_use]
+    pub fn at<T: Lanes>(&self, mu: T) -> CoatAt<T> {
+        match &self.factors {
+            Some(t) => {
+                let [reflectance, ms, crossing] = t.eval_lanes(mu);
+                CoatAt { reflectance, ms, crossing }
+            }
+            None => {
+                let reflectance = self.reflectance(mu);
+                CoatAt { reflectance, ms: T::c(0.0), crossing: lanes::max(T::c(1.0) - reflectance, T::c(0.0)) }
+            }
+        }
     }
 
     /// True for a mirror-smooth top surface.
@@ -388,9 +437,17 @@ impl Coat {
     #[must_use]
     pub fn ms_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
         match &self.ms {
-            Some(m) => {
-                m.albedo.eval_lanes(wi.z)[0] * m.albedo.eval_lanes(wo.z)[0] * T::c(m.norm) * ms_azimuthal(wi, wo)
-            }
+            Some(m) => self.ms_lobe(m.albedo.eval_lanes(wi.z)[0], m.albedo.eval_lanes(wo.z)[0], ms_azimuthal(wi, wo)),
+            None => T::c(0.0),
+        }
+    }
+
+    /// [`Coat::ms_eval`] from its factors `ΔR(μi)`, `ΔR(μo)` and `A(wi, wo)` (0 for a smooth coat).
+    #[inline(always)]
+    #[must_use]
+    pub fn ms_lobe<T: Lanes>(&self, ms_i: T, ms_o: T, azimuthal: T) -> T {
+        match &self.ms {
+            Some(m) => ms_i * ms_o * T::c(m.norm) * azimuthal,
             None => T::c(0.0),
         }
     }
@@ -480,24 +537,46 @@ impl Coat {
     #[inline(always)]
     #[must_use]
     pub fn reflection_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
-        if self.is_smooth() || !self.has_interface() {
-            return T::c(0.0);
-        }
-        let (h, defined) = half_vector_masked(wi, wo);
-        let mf = self.microfacet::<T>();
-        let (dg, g_positive) = mf.reflection_dg(wi, wo, h, MaskingKind::HeightCorrelated);
-        keep(defined & g_positive, fresnel::dielectric(wo.dot(h), T::c(self.ior)) * dg)
+        self.reflection_eval_h(&HalfPair::new(wi, wo))
+    }
+
+    /// [`Coat::reflection_eval`] of a pair whose half vector is known.
+    #[inline(always)]
+    #[must_use]
+    pub fn reflection_eval_h<T: Lanes>(&self, pair: &HalfPair<T>) -> T {
+        self.reflection_eval_pdf_h(pair).0
     }
 
     /// Density of [`Coat::reflection_sample`] (visible-normal sampling).
     #[inline(always)]
     #[must_use]
     pub fn reflection_pdf<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> T {
+        self.reflection_pdf_h(&HalfPair::new(wi, wo))
+    }
+
+    /// [`Coat::reflection_pdf`] of a pair whose half vector is known.
+    #[inline(always)]
+    #[must_use]
+    pub fn reflection_pdf_h<T: Lanes>(&self, pair: &HalfPair<T>) -> T {
+        self.reflection_eval_pdf_h(pair).1
+    }
+
+    /// [`Coat::reflection_eval_h`] and [`Coat::reflection_pdf_h`] together: they share the
+    /// distribution's value and the masking root of `wo` ([`Microfacet::reflection_dg_pdf`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn reflection_eval_pdf_h<T: Lanes>(&self, pair: &HalfPair<T>) -> (T, T) {
         if self.is_smooth() {
-            return T::c(0.0);
+            return (T::c(0.0), T::c(0.0));
         }
-        let (h, defined) = half_vector_masked(wi, wo);
-        keep(defined, self.microfacet::<T>().visible_d(wo, h) * reflection_jacobian(wo, h))
+        let HalfPair { wi, wo, h, defined } = *pair;
+        let (dg, g_positive, pdf) = self.microfacet::<T>().reflection_dg_pdf(wi, wo, h, MaskingKind::HeightCorrelated);
+        let value = if self.has_interface() {
+            keep(defined & g_positive, fresnel::dielectric(wo.dot(h), T::c(self.ior)) * dg)
+        } else {
+            T::c(0.0)
+        };
+        (value, keep(defined, pdf))
     }
 
     /// Samples the top reflection: the mirror direction when smooth, else a GGX visible normal.

@@ -101,8 +101,8 @@
 //! Ershov et al. 2001 and Günther et al. 2005 (car paint structure); the thesis in
 //! `shared/seeds/004` (parameters and ranges, chapter 3).
 
-use super::basecoat::{BaseParts, Basecoat, MetalBase};
-use super::coat::{ms_pdf, ms_sample, Coat};
+use super::basecoat::{BasePair, BaseParts, Basecoat, MetalBase};
+use super::coat::{ms_azimuthal, ms_sample, Coat, CoatAt};
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
 use super::sparkle::Sparkle;
@@ -110,6 +110,7 @@ use super::spec_series::{series_lobe, SpecSeries};
 use super::thin_film::ThinFilm;
 use crate::bxdf::{BsdfSample, Bxdf, Claims, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
 use crate::error::Error;
+use crate::frame::HalfPair;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes, Mask};
 use crate::lobes::bits;
@@ -471,7 +472,8 @@ impl CoatedPaint {
         parts: PaintParts,
         f: impl Fn(Vec3<T>) -> Rgb<T>,
     ) -> Option<BsdfSample<T>> {
-        let d = self.sample_direction_parts(wo, u, parts);
+        let o = self.at_wo(wo, parts);
+        let d = self.sample_direction_at(&o, u, parts);
         if !d.valid {
             return None;
         }
@@ -483,16 +485,18 @@ impl CoatedPaint {
         if d.wi.z <= T::zero() {
             return None;
         }
-        BsdfSample::from_eval(d.wi, f(d.wi), self.pdf_with(d.wi, wo, d.selection, parts))
+        BsdfSample::from_eval(d.wi, f(d.wi), self.pdf_pair(&self.at_pair(d.wi, &o), &o, parts))
     }
 
     /// The three terms of `eval` separately: top reflection, single-scatter layer, multiple scatter.
     #[must_use]
     pub fn eval_terms<T: Real>(&self, wi: Vec3<T>, wo: Vec3<T>) -> [Rgb<T>; 3] {
+        let o = self.at_wo(wo, PaintParts::ALL);
+        let p = self.at_pair(wi, &o);
         [
-            Rgb::splat(self.coat.top_eval(wi, wo)),
-            self.layer_term(wi, wo, T::one(), T::one(), PaintParts::ALL),
-            self.multiple_term(wi, wo),
+            Rgb::splat(self.top_term(&p, &o)),
+            self.layer_term(&p, &o, T::one(), T::one(), PaintParts::ALL),
+            self.multiple_term(&p, &o),
         ]
     }
 
@@ -510,16 +514,76 @@ impl CoatedPaint {
         (self.single.eval(mu), self.multiple.eval(mu))
     }
 
-    /// Lobe-selection weights for `wo`: top reflection (single scattering, visible normals),
+    /// Lobe-selection weights for `wo` from the coat's factors `coat` and the multiple-scatter
+    /// table's `M(μo)` there: top reflection (single scattering, visible normals),
     /// single-scatter layer, and the cosine-sampled lobes: the multiple-scatter lobe plus the
     /// rough coat's multiple-scattering reflection ([`Coat::ms_albedo`], 0 for a smooth coat).
+    /// Restricted to `parts`: the top reflection (coat), the single-scatter layer lobe times
+    /// the share of the basecoat's sampling weight `parts` enables, the multiple-scatter lobe
+    /// (pigment).
     #[inline(always)]
-    fn selection<T: Lanes>(&self, mu_o: T) -> [T; 3] {
+    fn selection_at<T: Lanes>(&self, coat: &CoatAt<T>, multiple: [T; 3], mu_o: T, parts: PaintParts) -> [T; 3] {
         let [a, b, c] = self.single.eval_lanes(mu_o);
-        let [d, e, f] = self.multiple.eval_lanes(mu_o);
+        let [d, e, f] = multiple;
         let third = T::c(3.0);
         let layer = (a + b + c) / third + self.spec_albedo(mu_o);
-        [self.coat.reflectance(mu_o), layer, (d + e + f) / third + self.coat.ms_albedo(mu_o)]
+        let mean_multiple = (d + e + f) / third;
+        if parts == PaintParts::ALL {
+            return [coat.reflectance, layer, mean_multiple + coat.ms];
+        }
+        let zero = T::c(0.0);
+        let share = self.base.selection_share(parts.base());
+        // The cosine-sampled weight holds the multiple-scatter lobe (pigment) and the coat's
+        // multiple-scattering reflection (coat).
+        let cosine = if parts.pigment { mean_multiple } else { zero } + if parts.coat { coat.ms } else { zero };
+        [if parts.coat { coat.reflectance } else { zero }, if share > 0.0 { layer * T::c(share) } else { zero }, cosine]
+    }
+
+    /// The lobe-selection weights for `cos θo = mu_o` restricted to `parts`
+    /// ([`Self::selection_at`]).
+    #[inline(always)]
+    fn selection_parts<T: Lanes>(&self, mu_o: T, parts: PaintParts) -> [T; 3] {
+        self.selection_at(&self.coat.at(mu_o), self.multiple.eval_lanes(mu_o), mu_o, parts)
+    }
+
+    /// What sampling, the value and the density share at `wo` ([`AtWo`]), for the lobes
+    /// `parts` enables.
+    #[inline(always)]
+    fn at_wo<T: Lanes>(&self, wo: Vec3<T>, parts: PaintParts) -> AtWo<T> {
+        let coat = self.coat.at(wo.z);
+        let multiple = self.multiple.eval_lanes(wo.z);
+        let wo_in = self.coat.refract_in(wo);
+        AtWo {
+            wo,
+            wo_in,
+            coat,
+            multiple,
+            selection: self.selection_at(&coat, multiple, wo.z, parts),
+            blur: self.base.blur_added(wo_in.z),
+        }
+    }
+
+    /// What the value and the density share at `wi` and the `wo` of `o` ([`AtPair`]).
+    #[inline(always)]
+    fn at_pair<T: Lanes>(&self, wi: Vec3<T>, o: &AtWo<T>) -> AtPair<T> {
+        let wi_in = self.coat.refract_in(wi);
+        let top = HalfPair::new(wi, o.wo);
+        AtPair {
+            top,
+            top_lobe: self.coat.reflection_eval_pdf_h(&top),
+            wi_in,
+            coat: self.coat.at(wi.z),
+            multiple: self.multiple.eval_lanes(wi.z),
+            ms_azimuthal: if self.coat.multiple_scattering().is_some() { ms_azimuthal(wi, o.wo) } else { T::c(0.0) },
+            base: self.base.pair_at(wi_in, o.wo_in, o.blur),
+        }
+    }
+
+    /// The coat's top reflection ([`Coat::top_eval`]): the single-scattering lobe plus the
+    /// multiple-scattering one.
+    #[inline(always)]
+    fn top_term<T: Lanes>(&self, p: &AtPair<T>, o: &AtWo<T>) -> T {
+        p.top_lobe.0 + self.coat.ms_lobe(p.coat.ms, o.coat.ms, p.ms_azimuthal)
     }
 
     /// The single-scatter layer term with the flake populations scaled by `metal_scale` and
@@ -527,40 +591,40 @@ impl CoatedPaint {
     #[inline(always)]
     fn layer_term<T: Lanes>(
         &self,
-        wi: Vec3<T>,
-        wo: Vec3<T>,
+        p: &AtPair<T>,
+        o: &AtWo<T>,
         metal_scale: T,
         pearl_scale: T,
         parts: PaintParts,
     ) -> Rgb<T> {
-        let (ti, to) = (self.coat.transmittance(wi.z), self.coat.transmittance(wo.z));
+        let (wi, wo) = (p.top.wi, o.wo);
+        let (ti, to) = (p.coat.transmittance(), o.coat.transmittance());
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
-        let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
+        let (wi_in, wo_in) = (p.wi_in, o.wo_in);
         let inv_eta2 = T::c(1.0 / (self.coat.ior * self.coat.ior));
         let mut f = if self.coat.has_crossing() && self.base.flakes.is_some() {
             // A rough coat: the flakes cross with `g(μi) g(μo)`, the pigment and the metal
             // base with `T(μi) T(μo)` (`Coat::crossing`).
-            let mut rest = self.base.eval_parts(
-                wi_in,
-                wo_in,
+            let mut rest = self.base.eval_pair(
+                &p.base,
                 metal_scale,
                 pearl_scale,
                 BaseParts { pigment: parts.pigment, glossy: false },
             );
             if parts.glossy {
-                rest += self.base.metal_eval(wi_in, wo_in);
+                rest += self.base.metal_eval_pair(&p.base);
                 if let Some(spec) = &self.spec {
                     rest += self.spec_term(spec, wi, wo, wi_in, wo_in);
                 }
             }
             let mut f = rest * (ti * to * inv_eta2);
             if parts.glossy {
-                let (gi, go) = (self.coat.crossing(wi.z), self.coat.crossing(wo.z));
-                f += self.base.flakes_eval(wi_in, wo_in, metal_scale, pearl_scale) * (gi * go * inv_eta2);
+                let (gi, go) = (p.coat.crossing, o.coat.crossing);
+                f += self.base.flakes_eval_pair(&p.base, metal_scale, pearl_scale) * (gi * go * inv_eta2);
             }
             f
         } else {
-            let mut f = self.base.eval_parts(wi_in, wo_in, metal_scale, pearl_scale, parts.base());
+            let mut f = self.base.eval_pair(&p.base, metal_scale, pearl_scale, parts.base());
             if parts.glossy {
                 if let Some(spec) = &self.spec {
                     f += self.spec_term(spec, wi, wo, wi_in, wo_in);
@@ -613,8 +677,8 @@ impl CoatedPaint {
 
     /// The multiple-scatter lobe `M(μi) M(μo) / (π M̄)`.
     #[inline(always)]
-    fn multiple_term<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> Rgb<T> {
-        let (a, b) = (self.multiple.eval_lanes(wi.z), self.multiple.eval_lanes(wo.z));
+    fn multiple_term<T: Lanes>(&self, p: &AtPair<T>, o: &AtWo<T>) -> Rgb<T> {
+        let (a, b) = (p.multiple, o.multiple);
         let n = self.multiple_norm.map(T::c);
         Rgb::new(a[0] * b[0] * n[0], a[1] * b[1] * n[1], a[2] * b[2] * n[2])
     }
@@ -638,57 +702,54 @@ impl CoatedPaint {
         pearl_scale: T,
         parts: PaintParts,
     ) -> Rgb<T> {
-        let mut f = if parts.coat { Rgb::splat(self.coat.top_eval(wi, wo)) } else { Rgb::zero() };
+        let o = self.at_wo(wo, parts);
+        self.eval_pair(&self.at_pair(wi, &o), &o, metal_scale, pearl_scale, parts)
+    }
+
+    /// [`CoatedPaint::eval_parts`] at a pair of directions whose shared terms are known.
+    #[inline(always)]
+    fn eval_pair<T: Lanes>(
+        &self,
+        p: &AtPair<T>,
+        o: &AtWo<T>,
+        metal_scale: T,
+        pearl_scale: T,
+        parts: PaintParts,
+    ) -> Rgb<T> {
+        let mut f = if parts.coat { Rgb::splat(self.top_term(p, o)) } else { Rgb::zero() };
         if parts.pigment || parts.glossy {
-            f += self.layer_term(wi, wo, metal_scale, pearl_scale, parts);
+            f += self.layer_term(p, o, metal_scale, pearl_scale, parts);
         }
         if parts.pigment {
-            f += self.multiple_term(wi, wo);
+            f += self.multiple_term(p, o);
         }
         f
     }
 
-    /// Lobe-selection weights for `wo` restricted to `parts`: the top reflection (coat), the
-    /// single-scatter layer lobe times the share of the basecoat's sampling weight `parts`
-    /// enables, the multiple-scatter lobe (pigment). [`PaintParts::ALL`]: [`Self::selection`].
+    /// The mixture density at a pair of directions whose shared terms are known, for the
+    /// selection weights of `o` (restricted to `parts`, as [`Self::selection_at`] gives them).
     #[inline(always)]
-    fn selection_parts<T: Lanes>(&self, mu_o: T, parts: PaintParts) -> [T; 3] {
-        let s = self.selection(mu_o);
-        if parts == PaintParts::ALL {
-            return s;
-        }
-        let zero = T::c(0.0);
-        let share = self.base.selection_share(parts.base());
-        // The cosine-sampled weight holds the multiple-scatter lobe (pigment) and the coat's
-        // multiple-scattering reflection (coat).
-        let [d, e, f] = self.multiple.eval_lanes(mu_o);
-        let cosine = if parts.pigment { (d + e + f) / T::c(3.0) } else { zero }
-            + if parts.coat { self.coat.ms_albedo(mu_o) } else { zero };
-        [if parts.coat { s[0] } else { zero }, if share > 0.0 { s[1] * T::c(share) } else { zero }, cosine]
-    }
-
-    /// The mixture density for `wo`'s lobe-selection weights `s` (restricted to `parts`, as
-    /// [`Self::selection_parts`] gives them).
-    #[inline(always)]
-    fn pdf_with<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, s: [T; 3], parts: PaintParts) -> T {
+    fn pdf_pair<T: Lanes>(&self, p: &AtPair<T>, o: &AtWo<T>, parts: PaintParts) -> T {
+        let s = o.selection;
+        let wi = p.top.wi;
         let total = s[0] + s[1] + s[2];
-        let mut p = if parts.coat { s[0] * self.coat.reflection_pdf(wi, wo) } else { T::c(0.0) };
+        let mut pdf = if parts.coat { s[0] * p.top_lobe.1 } else { T::c(0.0) };
         if parts.pigment || parts.glossy {
-            let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
-            let layer =
-                s[1] * self.base.pdf_parts(wi_in, wo_in, parts.base()) * self.coat.solid_angle_ratio(wi.z, wi_in.z);
-            p += keep(lanes::gt(s[1], T::c(0.0)), layer);
+            let layer = s[1] * self.base.pdf_pair(&p.base, parts.base()) * self.coat.solid_angle_ratio(wi.z, p.wi_in.z);
+            pdf += keep(lanes::gt(s[1], T::c(0.0)), layer);
         }
         if parts.pigment || parts.coat {
-            p += s[2] * cosine_hemisphere_pdf(wi.z);
+            let cosine = cosine_hemisphere_pdf(wi.z);
+            pdf += s[2] * cosine;
             if parts.coat && self.coat.multiple_scattering().is_some() {
                 // The coat's multiple-scattering share `ΔR(μo)` of the cosine weight draws its
-                // azimuth from the lobe's wrapped Cauchy: density `A cos θi/π`, not `cos θi/π`.
-                let ms = self.coat.ms_albedo(wo.z);
-                p += ms * (ms_pdf(wi, wo) - cosine_hemisphere_pdf(wi.z));
+                // azimuth from the lobe's wrapped Cauchy: density `A cos θi/π`
+                // ([`super::coat::ms_pdf`]),
+                // not `cos θi/π`.
+                pdf += o.coat.ms * (cosine * p.ms_azimuthal - cosine);
             }
         }
-        keep(lanes::gt(total, T::c(0.0)), lanes::div_fast(p, total))
+        keep(lanes::gt(total, T::c(0.0)), lanes::div_fast(pdf, total))
     }
 
     /// The sum of the lobe-selection weights sampling gives the lobes `parts` enables, for an
@@ -705,19 +766,15 @@ impl CoatedPaint {
     /// The density of sampling restricted to `parts` ([`CoatedPaint::sample_parts`]).
     #[inline(always)]
     pub fn pdf_parts<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, parts: PaintParts) -> T {
-        self.pdf_with(wi, wo, self.selection_parts(wo.z, parts), parts)
+        let o = self.at_wo(wo, parts);
+        self.pdf_pair(&self.at_pair(wi, &o), &o, parts)
     }
 
-    /// Samples a direction (or the smooth coat's mirror delta) for `wo`, per lane, choosing
-    /// among the lobes `parts` enables.
+    /// Samples a direction (or the smooth coat's mirror delta) for the `wo` of `o`, per lane,
+    /// choosing among the lobes `parts` enables.
     #[inline(always)]
-    pub(crate) fn sample_direction_parts<T: Lanes>(
-        &self,
-        wo: Vec3<T>,
-        u: [T; 3],
-        parts: PaintParts,
-    ) -> SampledDirection<T> {
-        let selection = self.selection_parts(wo.z, parts);
+    fn sample_direction_at<T: Lanes>(&self, o: &AtWo<T>, u: [T; 3], parts: PaintParts) -> SampledDirection<T> {
+        let (wo, selection) = (o.wo, o.selection);
         let pick = pick3(selection, u[0]);
         let [top, layer, multiple] = pick.lobe;
         // Each lobe's sampler runs only when some lane chose it (for one lane: only the
@@ -725,8 +782,14 @@ impl CoatedPaint {
         let normal = Vec3::from_f64(0.0, 0.0, 1.0);
         let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
         let (w_layer, layer_ok) = if layer.any() {
-            let wo_in = self.coat.refract_in(wo);
-            let (wi_in, base_ok) = self.base.sample_direction_parts(wo_in, [pick.u, u[1], u[2]], layer, parts.base());
+            let (wi_in, base_ok) = self.base.sample_direction_at(
+                o.wo_in,
+                [pick.u, u[1], u[2]],
+                layer,
+                parts.base(),
+                FlakeSampler::Projected,
+                o.blur,
+            );
             let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
             (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
         } else {
@@ -737,7 +800,7 @@ impl CoatedPaint {
             if parts.coat && self.coat.multiple_scattering().is_some() {
                 // The cosine weight's first `ΔR(μo)` is the coat's multiple-scattering
                 // reflection: its azimuth follows the lobe's wrapped Cauchy ([`ms_sample`]).
-                let coat_ms = multiple & lanes::lt(pick.u * selection[2], self.coat.ms_albedo(wo.z));
+                let coat_ms = multiple & lanes::lt(pick.u * selection[2], o.coat.ms);
                 if coat_ms.any() {
                     Vec3::select(coat_ms, ms_sample(wo, u[1], u[2]), w)
                 } else {
@@ -762,7 +825,7 @@ impl CoatedPaint {
     }
 }
 
-/// A direction drawn by [`CoatedPaint::sample_direction_parts`], per lane.
+/// A direction drawn by [`CoatedPaint::sample_direction_at`], per lane.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SampledDirection<T: Lanes> {
     /// The direction.
@@ -773,6 +836,47 @@ pub(crate) struct SampledDirection<T: Lanes> {
     pub delta: T::Mask,
     /// The lobe-selection weights for `wo`.
     pub selection: [T; 3],
+}
+
+/// What sampling, the value and the density share at one outgoing direction, per lane
+/// ([`CoatedPaint::at_wo`]): computed once per lane group in a sample (the sampler, then the
+/// value and the density at the drawn direction read it).
+#[derive(Clone, Copy, Debug)]
+struct AtWo<T: Lanes> {
+    /// The outgoing direction.
+    wo: Vec3<T>,
+    /// `wo` refracted into the coat.
+    wo_in: Vec3<T>,
+    /// The coat's factors at `μo`.
+    coat: CoatAt<T>,
+    /// `M(μo)`.
+    multiple: [T; 3],
+    /// The lobe-selection weights ([`CoatedPaint::selection_at`]).
+    selection: [T; 3],
+    /// The transmission blur's added `α²` at `wo_in` ([`Basecoat::blur_added`]).
+    blur: Option<T>,
+}
+
+/// What the value and the density share at one pair of directions, per lane
+/// ([`CoatedPaint::at_pair`]).
+#[derive(Clone, Copy, Debug)]
+struct AtPair<T: Lanes> {
+    /// `wi`, `wo` and the top surface's half vector.
+    top: HalfPair<T>,
+    /// The top surface's single-scattering reflection and its sampling density
+    /// ([`Coat::reflection_eval_pdf_h`]).
+    top_lobe: (T, T),
+    /// `wi` refracted into the coat.
+    wi_in: Vec3<T>,
+    /// The coat's factors at `μi`.
+    coat: CoatAt<T>,
+    /// `M(μi)`.
+    multiple: [T; 3],
+    /// The coat's multiple-scattering azimuthal factor `A(wi, wo)` ([`ms_azimuthal`]; 0
+    /// without that reflection).
+    ms_azimuthal: T,
+    /// The basecoat's shared terms at the refracted directions.
+    base: BasePair<T>,
 }
 
 /// Which of the paint's lobes a call includes, from a lobe mask ([`crate::lobes::bits`]):
@@ -1054,7 +1158,7 @@ impl LaneBxdf for CoatedPaint {
 
     #[inline(always)]
     fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
-        self.pdf_with(wi, wo, self.selection(wo.z), PaintParts::ALL)
+        self.pdf_parts(wi, wo, PaintParts::ALL)
     }
 
     #[inline(always)]
@@ -1076,6 +1180,17 @@ impl LaneBxdf for CoatedPaint {
     fn sample_lobes_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], lobes: u32) -> LaneSample<L> {
         self.sample_parts(wo, u, PaintParts::of(lobes))
     }
+
+    const SHARES_EVAL_PDF: bool = true;
+
+    /// The value and the density sharing their refractions, half vectors, table values and
+    /// the coat's azimuthal factor ([`AtWo`], [`AtPair`]).
+    #[inline(always)]
+    fn eval_pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
+        let o = self.at_wo(wo, PaintParts::ALL);
+        let p = self.at_pair(wi, &o);
+        (self.eval_pair(&p, &o, L::c(1.0), L::c(1.0), PaintParts::ALL), self.pdf_pair(&p, &o, PaintParts::ALL))
+    }
 }
 
 impl CoatedPaint {
@@ -1083,9 +1198,13 @@ impl CoatedPaint {
     /// weight is the restricted `f · cos / pdf`); [`PaintParts::ALL`] is [`Bxdf::sample`].
     #[inline(always)]
     pub fn sample_parts<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], parts: PaintParts) -> LaneSample<L> {
-        let d = self.sample_direction_parts(wo, u, parts);
-        let f = self.eval_parts(d.wi, wo, L::c(1.0), L::c(1.0), parts);
-        let pdf = self.pdf_with(d.wi, wo, d.selection, parts);
+        let o = self.at_wo(wo, parts);
+        let d = self.sample_direction_at(&o, u, parts);
+        // The value and the density at the drawn direction share their refractions, half
+        // vectors, table values and the coat's azimuthal factor ([`AtPair`]).
+        let p = self.at_pair(d.wi, &o);
+        let f = self.eval_pair(&p, &o, L::c(1.0), L::c(1.0), parts);
+        let pdf = self.pdf_pair(&p, &o, parts);
         let s = LaneSample::from_eval(d.wi, f, pdf, d.valid & lanes::gt(d.wi.z, L::c(0.0)));
         if !self.coat.is_smooth() {
             return s;
@@ -1891,7 +2010,8 @@ mod tests {
         let n = Vec3::new(0.0f64, 0.0, 1.0);
         let f0 = 0.04f64;
         let expect = (1.0 - f0).powi(2) / 2.25 / std::f64::consts::PI;
-        let got = p.layer_term(n, n, 1.0, 1.0, PaintParts::ALL);
+        let o = p.at_wo(n, PaintParts::ALL);
+        let got = p.layer_term(&p.at_pair(n, &o), &o, 1.0, 1.0, PaintParts::ALL);
         assert!((got.r - expect).abs() < 1e-12, "{} vs {expect}", got.r);
     }
     /// `∫ f(wi, wo) cos θi dωi` by Gauss-Legendre product quadrature split at EON's kinks

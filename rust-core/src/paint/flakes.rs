@@ -8,7 +8,7 @@
 //! mutual occlusion at grazing angles, and albedo at most `c`.
 
 use crate::bxdf::BsdfSample;
-use crate::frame::half_vector_masked;
+use crate::frame::HalfPair;
 use crate::fresnel;
 use crate::lanes::{self, keep, Lanes};
 use crate::math::{Rgb, Vec3};
@@ -129,9 +129,26 @@ impl FlakeLayer {
         metal_scale: T,
         pearl_scale: T,
     ) -> Rgb<T> {
-        let (h, defined) = half_vector_masked(wi, wo);
+        let pair = HalfPair::new(wi, wo);
+        self.eval_scaled_h(mf, mf.d(pair.h), other, &pair, metal_scale, pearl_scale)
+    }
+
+    /// [`FlakeLayer::eval_scaled_with`] of a pair whose half vector is known, with `d` the
+    /// distribution `mf`'s `D(h)` (which the projected-area density shares,
+    /// [`FlakeLayer::projected_pdf_h`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn eval_scaled_h<T: Lanes>(
+        &self,
+        mf: &Microfacet<T>,
+        d: T,
+        other: Option<&Microfacet<T>>,
+        pair: &HalfPair<T>,
+        metal_scale: T,
+        pearl_scale: T,
+    ) -> Rgb<T> {
+        let HalfPair { wi, wo, h, defined } = *pair;
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        let d = mf.d(h);
         let (dg, ok) = match other {
             None => (d * g, lanes::gt(g, T::c(0.0))),
             Some(b) => {
@@ -178,12 +195,27 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn pdf_by<T: Lanes>(mf: &Microfacet<T>, wi: Vec3<T>, wo: Vec3<T>, sampler: FlakeSampler) -> T {
-        let (h, defined) = half_vector_masked(wi, wo);
-        let d = match sampler {
-            FlakeSampler::Projected => mf.d(h) * h.z,
-            FlakeSampler::Visible => mf.visible_d(wo, h),
-        };
-        keep(defined, d * reflection_jacobian(wo, h))
+        let pair = HalfPair::new(wi, wo);
+        match sampler {
+            FlakeSampler::Projected => Self::projected_pdf_h(mf.d(pair.h), &pair),
+            FlakeSampler::Visible => Self::visible_pdf_h(mf, &pair),
+        }
+    }
+
+    /// The projected-area sampler's density ([`FlakeSampler::Projected`]) for a pair whose half
+    /// vector is known, given the distribution's `D(h)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn projected_pdf_h<T: Lanes>(d: T, pair: &HalfPair<T>) -> T {
+        keep(pair.defined, d * pair.h.z * reflection_jacobian(pair.wo, pair.h))
+    }
+
+    /// The visible-normal sampler's density ([`FlakeSampler::Visible`]) for a pair whose half
+    /// vector is known.
+    #[inline(always)]
+    #[must_use]
+    pub fn visible_pdf_h<T: Lanes>(mf: &Microfacet<T>, pair: &HalfPair<T>) -> T {
+        keep(pair.defined, mf.visible_d(pair.wo, pair.h) * reflection_jacobian(pair.wo, pair.h))
     }
 
     /// Samples a flake normal from `D(m) cos θm` and reflects `wo` about it (may fall below

@@ -232,6 +232,52 @@ impl ToArrayF64 for Vec3<f32> {
     }
 }
 
+/// A model whose value and density share work (the coated paint: refractions, half vectors,
+/// table values, the coat's azimuthal factor) gives in one `eval_pdf` call exactly what the
+/// value-only and density-only calls give, bit for bit, at every SIMD level and in f64.
+#[test]
+fn joint_eval_pdf_equals_the_separate_calls() {
+    let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = 1037;
+    let (wi, wo) = directions(n, 17);
+    let (wi_f, wo_f): (Vec<f32>, Vec<f32>) =
+        (wi.iter().flatten().copied().collect(), wo.iter().flatten().copied().collect());
+    let (wi_d, wo_d): (Vec<f64>, Vec<f64>) =
+        (wi_f.iter().map(|&x| f64::from(x)).collect(), wo_f.iter().map(|&x| f64::from(x)).collect());
+    let active: Vec<u8> = (0..n).map(|i| u8::from(i % 13 != 5)).collect();
+    let mut names: Vec<&str> = MATERIALS.iter().copied().filter(|j| j.contains("coated_paint")).collect();
+    names.push(r#"{"preset": "gold_flake_8"}"#);
+    names.push(r#"{"model": "coated_paint", "coat_roughness": 0.2, "base_metallic": 1, "base_roughness": 0.05, "flake_density": 0}"#);
+    for name in names {
+        let m = &Material::from_json(name).unwrap();
+        for level in levels() {
+            assert!(batch::set_simd_level(level));
+            let (wiv, wov) = (Src3::interleaved(&wi_f), Src3::interleaved(&wo_f));
+            let (mut f_joint, mut p_joint) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+            let (mut f_alone, mut p_alone) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+            let joint = (Some(&Dst3::interleaved(&mut f_joint)), Some(&Dst1::new(&mut p_joint)));
+            batch::eval_pdf(m, &wiv, &wov, Some(&active), joint.0, joint.1).unwrap();
+            batch::eval_pdf(m, &wiv, &wov, Some(&active), Some(&Dst3::interleaved(&mut f_alone)), None).unwrap();
+            batch::eval_pdf(m, &wiv, &wov, Some(&active), None, Some(&Dst1::new(&mut p_alone))).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&f_joint), bits(&f_alone), "{name} {level:?}: value");
+            assert_eq!(bits(&p_joint), bits(&p_alone), "{name} {level:?}: density");
+            assert!(p_joint.iter().any(|&p| p > 0.0), "{name} {level:?}: some density");
+        }
+        let (wiv, wov) = (Src3::interleaved(&wi_d), Src3::interleaved(&wo_d));
+        let (mut f_joint, mut p_joint) = (vec![7.0f64; 3 * n], vec![7.0f64; n]);
+        let (mut f_alone, mut p_alone) = (vec![7.0f64; 3 * n], vec![7.0f64; n]);
+        let joint = (Some(&Dst3::interleaved(&mut f_joint)), Some(&Dst1::new(&mut p_joint)));
+        batch::eval_pdf_f64(m, &wiv, &wov, Some(&active), joint.0, joint.1).unwrap();
+        batch::eval_pdf_f64(m, &wiv, &wov, Some(&active), Some(&Dst3::interleaved(&mut f_alone)), None).unwrap();
+        batch::eval_pdf_f64(m, &wiv, &wov, Some(&active), None, Some(&Dst1::new(&mut p_alone))).unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&f_joint), bits(&f_alone), "{name} f64: value");
+        assert_eq!(bits(&p_joint), bits(&p_alone), "{name} f64: density");
+    }
+    assert!(batch::set_simd_level(SimdLevel::detect()));
+}
+
 /// Results do not depend on the thread count (bit-identical), for a batch large enough to run
 /// in parallel.
 #[test]
