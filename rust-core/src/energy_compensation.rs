@@ -106,6 +106,9 @@ pub struct AlbedoTable {
     lane_loss: Vec<f32>,
     /// See `lane_loss`.
     lane_slope: Vec<f32>,
+    /// Row 0's f32 `loss` and `slope` at node `j` and `j + 1` as the rows of
+    /// [`Lanes::lookup_rows3_f32_`] (SIMD lanes without register lookups: AVX2).
+    lane_rows: Vec<[f32; 8]>,
     /// `1 − E_avg`, the integral of the interpolated table.
     loss_avg: f64,
     /// The Fresnel-like weight of a shared weighted table ([`AlbedoTable::cached_weighted`]);
@@ -751,6 +754,7 @@ impl AlbedoTable {
                     n_phi,
                     lane_loss: padded_f32(&loss[..N_MU]),
                     lane_slope: padded_f32(&slope[..N_MU]),
+                    lane_rows: neighbour_rows(&loss[..N_MU], &slope[..N_MU]),
                     loss,
                     slope,
                     loss_avg: 0.0,
@@ -938,7 +942,13 @@ impl AlbedoTable {
         } else {
             // `cell_lanes` keeps `j` in [0, N_MU − 2]; the lookups clamp (NaN reads nodes 0, 1),
             // and their f32 nodes are the values the lanes held before (f64 rounded to f32).
-            let [(y0, y1), (d0, d1)] = L::lookup_pairs_f32_([self.lane_loss.as_slice(), self.lane_slope.as_slice()], j);
+            let [(y0, y1), (d0, d1)] = if L::REGISTER_LOOKUP {
+                L::lookup_pairs_f32_([self.lane_loss.as_slice(), self.lane_slope.as_slice()], j)
+            } else {
+                // One row per lane instead of four gathers (same f32 values).
+                let [loss, slope, _] = L::lookup_rows3_f32_(&self.lane_rows, j);
+                [loss, slope]
+            };
             (y0, y1, d0 * h, d1 * h)
         };
         // Cubic Hermite basis.
@@ -1021,6 +1031,17 @@ fn padded_f32(values: &[f64]) -> Vec<f32> {
     let last = *v.last().expect("a table row has nodes");
     v.resize(values.len().next_multiple_of(16).max(32), last);
     v
+}
+
+/// Rows `[loss_j, slope_j, 0, 0, loss_{j+1}, slope_{j+1}, 0, 0]` (f32) for
+/// [`Lanes::lookup_rows3_f32_`].
+fn neighbour_rows(loss: &[f64], slope: &[f64]) -> Vec<[f32; 8]> {
+    (0..loss.len() - 1)
+        .map(|j| {
+            let (l, d) = (|i: usize| loss[i] as f32, |i: usize| slope[i] as f32);
+            [l(j), d(j), 0.0, 0.0, l(j + 1), d(j + 1), 0.0, 0.0]
+        })
+        .collect()
 }
 
 /// `μ` at the table coordinate `s ∈ [0, 1]` of a row with spacing scale `ε`.

@@ -13,6 +13,20 @@ pub struct MuTable {
     /// `n − 1` and `n − 2` for `n` nodes, as f32 (exact): the SIMD lookups' scale and last
     /// interval, read as f32 constants rather than converted from the length per call.
     lane_scale: [f32; 2],
+    /// The same f32 values as rows for [`Lanes::lookup_rows3_f32_`] (SIMD lanes without
+    /// register lookups): row `j` holds the three channels at node `j`, then at node `j + 1`.
+    lane_rows: Vec<[f32; 8]>,
+}
+
+/// Rows of node `j` and node `j + 1` for [`Lanes::lookup_rows3_f32_`], the values rounded to f32.
+fn lane_rows(values: &[[f64; 3]]) -> Vec<[f32; 8]> {
+    values
+        .windows(2)
+        .map(|w| {
+            let [a, b] = [w[0], w[1]].map(|v| v.map(|x| x as f32));
+            [a[0], a[1], a[2], 0.0, b[0], b[1], b[2], 0.0]
+        })
+        .collect()
 }
 
 /// Per-channel f32 copies of `values`, padded for [`Lanes::lookup_f32_`].
@@ -39,7 +53,12 @@ impl MuTable {
     pub fn from_values(values: Vec<[f64; 3]>) -> Self {
         assert!(values.len() >= 2, "a table needs at least two nodes");
         let last = values.len() - 1;
-        Self { lane_values: lane_values(&values), lane_scale: [last as f32, (last - 1) as f32], values }
+        Self {
+            lane_values: lane_values(&values),
+            lane_scale: [last as f32, (last - 1) as f32],
+            lane_rows: lane_rows(&values),
+            values,
+        }
     }
 
     /// Node values.
@@ -61,9 +80,9 @@ impl MuTable {
     }
 
     /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
-    /// table values, rounded to f32, looked up per lane with [`Lanes::lookup_pairs_f32_`]:
-    /// register permutes for tables of up to 64 nodes with AVX-512, the hardware gather
-    /// otherwise).
+    /// table values, rounded to f32, looked up per lane: with AVX-512 by register permutes
+    /// ([`Lanes::lookup_pairs_f32_`], tables of up to 64 nodes), with AVX2 one row of both
+    /// neighbours' three channels per lane ([`Lanes::lookup_rows3_f32_`])).
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {
@@ -77,8 +96,12 @@ impl MuTable {
         let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * last;
         let i = lanes::min(x.floor_(), last_interval);
         let t = x - i;
-        let [r, g, b] = &self.lane_values;
-        let pairs = L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i);
+        let pairs = if L::REGISTER_LOOKUP {
+            let [r, g, b] = &self.lane_values;
+            L::lookup_pairs_f32_([r.as_slice(), g.as_slice(), b.as_slice()], i)
+        } else {
+            L::lookup_rows3_f32_(&self.lane_rows, i)
+        };
         // A plain loop by reference, not a closure (which may not inline into the SIMD
         // kernels) nor an array's by-value iterator (which cost the release build 20 %).
         let mut out = [L::c(0.0); 3];

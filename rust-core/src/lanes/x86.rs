@@ -441,6 +441,44 @@ impl Lanes for F32x8 {
         }
         out
     }
+
+    #[inline(always)]
+    fn lookup_rows3_f32_(rows: &[[f32; 8]], idx: Self) -> [(Self, Self); 3] {
+        assert!(!rows.is_empty(), "lookup rows need at least one row");
+        // max(NaN, 0) = 0 (the second operand), so every row index is in bounds.
+        let j = idx.max_(Self::splat(0.0)).min_(Self::splat((rows.len() - 1) as f32));
+        let mut k = [0i32; 8];
+        // SAFETY: every k[l] is in [0, rows.len() − 1] (clamped above, converted exactly),
+        // so each load reads one whole row; AVX2 per the module contract.
+        unsafe {
+            _mm256_storeu_si256(k.as_mut_ptr().cast(), _mm256_cvttps_epi32(j.0));
+            let p = rows.as_ptr().cast::<f32>();
+            let r = |l: usize| _mm256_loadu_ps(p.add(8 * k[l] as usize));
+            let (r0, r1, r2, r3, r4, r5, r6, r7) = (r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7));
+            // An 8 × 8 transpose of the rows, keeping the six columns in use: per 128-bit
+            // half, unpack pairs of rows, then gather each channel's four lanes …
+            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+            let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+            let (t4, t5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
+            let (t6, t7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
+            let low = [
+                _mm256_shuffle_ps::<0x44>(t0, t2),
+                _mm256_shuffle_ps::<0xEE>(t0, t2),
+                _mm256_shuffle_ps::<0x44>(t1, t3),
+            ];
+            let high = [
+                _mm256_shuffle_ps::<0x44>(t4, t6),
+                _mm256_shuffle_ps::<0xEE>(t4, t6),
+                _mm256_shuffle_ps::<0x44>(t5, t7),
+            ];
+            // … and join lanes 0–3 with lanes 4–7: low halves are node j, high halves node j + 1.
+            let mut out = [(j, j); 3];
+            for ((o, &a), &b) in out.iter_mut().zip(low.iter()).zip(high.iter()) {
+                *o = (Self(_mm256_permute2f128_ps::<0x20>(a, b)), Self(_mm256_permute2f128_ps::<0x31>(a, b)));
+            }
+            out
+        }
+    }
 }
 
 impl Lanes for F32x16 {
@@ -865,6 +903,37 @@ mod tests {
             assert!(div <= 2.0 && rsqrt <= 2.0 && sqrt <= 2.0, "width {w}: div {div}, rsqrt {rsqrt}, sqrt {sqrt} ulp");
             assert_eq!(L::c(0.0).sqrt_fast_().lane(0), 0.0);
         }
+        check_each_simd_type!(check);
+    }
+
+    /// The row lookups against indexing the rows directly: every row, indices below 0 and
+    /// beyond the last row (clamped), and NaN (row 0).
+    #[test]
+    fn lookup_rows_read_both_neighbours_of_three_channels() {
+        fn check<L: Lanes<Elem = f32>>() {
+            for len in [1usize, 2, 63, 80] {
+                let rows: Vec<[f32; 8]> =
+                    (0..len).map(|j| std::array::from_fn(|e| (j * j) as f32 * 0.25 + e as f32 * 100.0 - 3.0)).collect();
+                let mut indices: Vec<f32> = (0..len).map(|i| i as f32).collect();
+                indices.extend([-5.0, -1.0, len as f32, (len + 9) as f32, 1e9, f32::NAN]);
+                for group in indices.chunks(L::WIDTH) {
+                    let idx = L::from_fn(|i| group.get(i).copied().unwrap_or(0.0));
+                    let got = L::lookup_rows3_f32_(&rows, idx);
+                    for (lane, &x) in group.iter().enumerate() {
+                        let j = if x.is_nan() { 0 } else { x.clamp(0.0, (len - 1) as f32) as usize };
+                        for (c, (a, b)) in got.iter().enumerate() {
+                            assert_eq!(
+                                (a.lane(lane), b.lane(lane)),
+                                (rows[j][c], rows[j][4 + c]),
+                                "width {}, {len} rows, index {x}, channel {c}",
+                                L::WIDTH
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        check::<f32>();
         check_each_simd_type!(check);
     }
 
