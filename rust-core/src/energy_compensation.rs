@@ -928,7 +928,8 @@ impl AlbedoTable {
     }
 
     /// `1 − E` of an isotropic table at a cell of [`AlbedoTable::cell_lanes`] (of this table
-    /// or one with [`AlbedoTable::same_cells`]): the node values gathered per lane, the cubic
+    /// or one with [`AlbedoTable::same_cells`]): the node values read per lane (register permutes
+    /// with AVX-512, one row per lane with AVX2), the cubic
     /// Hermite interpolation in lanes, as [`AlbedoTable::loss`].
     #[inline(always)]
     #[must_use]

@@ -8,7 +8,8 @@ use crate::real::Real;
 pub struct MuTable {
     values: Vec<[f64; 3]>,
     /// The node values rounded to f32, one array per channel, padded with the last node to a
-    /// multiple of 16 entries (at least 32) for the SIMD lookups ([`Lanes::lookup_f32_`]).
+    /// multiple of 16 entries (at least 32) for the lane types with register lookups
+    /// ([`Lanes::lookup_pairs_f32_`]: AVX-512).
     lane_values: [Vec<f32>; 3],
     /// `n − 1` and `n − 2` for `n` nodes, as f32 (exact): the SIMD lookups' scale and last
     /// interval, read as f32 constants rather than converted from the length per call.
@@ -81,8 +82,9 @@ impl MuTable {
 
     /// [`MuTable::eval`] per lane (the interpolation weight in the lane precision; the
     /// table values, rounded to f32, looked up per lane: with AVX-512 by register permutes
-    /// ([`Lanes::lookup_pairs_f32_`], tables of up to 64 nodes), with AVX2 one row of both
-    /// neighbours' three channels per lane ([`Lanes::lookup_rows3_f32_`])).
+    /// ([`Lanes::lookup_pairs_f32_`]; the hardware gather for tables of more than 64 nodes),
+    /// with AVX2 one row of both neighbours' three channels per lane
+    /// ([`Lanes::lookup_rows3_f32_`])).
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> [L; 3] {

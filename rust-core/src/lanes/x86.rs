@@ -238,6 +238,10 @@ impl Mask for M16 {
     }
 }
 
+/// The longest table the lookups read: its last index, `2^24 − 1`, and every smaller one are
+/// exact in f32, so the clamps keep every read in bounds.
+const MAX_LOOKUP_LEN: usize = 1 << 24;
+
 impl Lanes for F32x8 {
     type Mask = M32x8;
     type Elem = f32;
@@ -414,6 +418,8 @@ impl Lanes for F32x8 {
     }
     #[inline(always)]
     fn lookup_f32_(table: &[f32], idx: Self) -> Self {
+        assert!((1..=MAX_LOOKUP_LEN).contains(&table.len()), "lookup tables hold 1 to 2^24 entries");
+        // Exact in f32: len − 1 < 2^24.
         let last = (table.len() - 1) as f32;
         // max(NaN, 0) = 0 (the second operand), so every index is in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
@@ -425,7 +431,7 @@ impl Lanes for F32x8 {
         // The shortest table bounds the index (the tables are meant to be of one length), so
         // every read below is in bounds whatever the caller passes.
         let len = tables.iter().fold(usize::MAX, |m, t| m.min(t.len()));
-        assert!((2..usize::MAX).contains(&len), "lookup tables need at least two entries");
+        assert!((2..=MAX_LOOKUP_LEN).contains(&len), "lookup tables hold 2 to 2^24 entries");
         // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));
         let mut out = [(j, j); N];
@@ -444,12 +450,13 @@ impl Lanes for F32x8 {
 
     #[inline(always)]
     fn lookup_rows3_f32_(rows: &[[f32; 8]], idx: Self) -> [(Self, Self); 3] {
-        assert!(!rows.is_empty(), "lookup rows need at least one row");
+        assert!((1..=MAX_LOOKUP_LEN).contains(&rows.len()), "lookup rows hold 1 to 2^24 rows");
         // max(NaN, 0) = 0 (the second operand), so every row index is in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat((rows.len() - 1) as f32));
         let mut k = [0i32; 8];
-        // SAFETY: every k[l] is in [0, rows.len() − 1] (clamped above, converted exactly),
-        // so each load reads one whole row; AVX2 per the module contract.
+        // SAFETY: every k[l] is in [0, rows.len() − 1] (clamped above; rows.len() − 1 < 2^24
+        // is exact in f32, so the clamp and the conversion are exact), so each load reads one
+        // whole row; AVX2 per the module contract.
         unsafe {
             _mm256_storeu_si256(k.as_mut_ptr().cast(), _mm256_cvttps_epi32(j.0));
             let p = rows.as_ptr().cast::<f32>();
@@ -648,6 +655,7 @@ impl Lanes for F32x16 {
     }
     #[inline(always)]
     fn lookup_f32_(table: &[f32], idx: Self) -> Self {
+        assert!((1..=MAX_LOOKUP_LEN).contains(&table.len()), "lookup tables hold 1 to 2^24 entries");
         debug_assert!(
             table.len() >= 32 && table.len().is_multiple_of(16),
             "lookup tables are padded to 16k ≥ 32 entries"
@@ -679,7 +687,7 @@ impl Lanes for F32x16 {
         // The shortest table bounds the index and picks the lookup (the tables are meant to be
         // of one length), so every read below is in bounds whatever the caller passes.
         let len = tables.iter().fold(usize::MAX, |m, t| m.min(t.len()));
-        assert!((2..usize::MAX).contains(&len), "lookup tables need at least two entries");
+        assert!((2..=MAX_LOOKUP_LEN).contains(&len), "lookup tables hold 2 to 2^24 entries");
         debug_assert!(len >= 32 && len.is_multiple_of(16), "tables padded to 16k ≥ 32 entries");
         // max(NaN, 0) = 0 (the second operand), so every index and its successor are in bounds.
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat((len - 2) as f32));

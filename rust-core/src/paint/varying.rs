@@ -1026,7 +1026,7 @@ impl VaryingPaint {
 
     /// The mixture density for the selection weights `s` at `wo`, whose cosine weight `s[2]`
     /// holds the coat's multiple-scattering reflection `ms` = `ΔR(μo)` (as
-    /// `CoatedPaint::pdf_with`).
+    /// `CoatedPaint::pdf_pair`).
     #[inline(always)]
     fn pdf_with<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>, s: [L; 3], ms: L) -> L {
         let total = s[0] + s[1] + s[2];
