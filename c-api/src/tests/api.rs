@@ -488,7 +488,29 @@ fn one_element_functions_match_the_batch_functions() {
                 close(p1, p[i], "pdf");
                 if fl1 == 0 && fl[i] == 0 {
                     (0..3).for_each(|c| close(w1[c], swi[3 * i + c], "sample wi"));
-                    (0..3).for_each(|c| close(g1[c], sw[3 * i + c], "sample weight"));
+                    // Where the scalar f32 weight is itself more than 2e-5 from the f64
+                    // reference (an ill-conditioned sample: coated_paint element 512 leaves the
+                    // coat at cos θ 0.0053, next to the critical angle; scalar f32 3.0e-5 and AVX2
+                    // 1.2e-4 from f64), the batch must be within the f32 budget of the f64
+                    // reference instead (2e-4, as rust-core/tests/integration/batch.rs).
+                    let core = Material::default_of(info).expect("defaults build");
+                    let o64 = Vec3::new(f64::from(o[0]), f64::from(o[1]), f64::from(o[2]));
+                    let s64 = core.sample(o64, [f64::from(uu[0]), f64::from(uu[1]), f64::from(uu[2])]);
+                    let w64 = s64.map(|s| s.weight.to_array());
+                    for c in 0..3 {
+                        let well_conditioned =
+                            w64.is_none_or(|w| (f64::from(g1[c]) - w[c]).abs() <= 2e-5 * w[c].abs() + 1e-6);
+                        if well_conditioned {
+                            close(g1[c], sw[3 * i + c], "sample weight");
+                        } else if let Some(w) = w64 {
+                            let (b, r) = (f64::from(sw[3 * i + c]), w[c]);
+                            assert!(
+                                (b - r).abs() <= 2e-4 * r.abs() + 2e-6,
+                                "{} sample weight {i}: {b} vs f64 {r}",
+                                info.name
+                            );
+                        }
+                    }
                     close(q1, sp[i], "sample pdf");
                 }
                 continue;
