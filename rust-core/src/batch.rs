@@ -298,6 +298,14 @@ impl<'a, E> Dst1<'a, E> {
 }
 
 impl<E> Src3<'_, E> {
+    /// The view copied into a local: its pointers and stride then stay in registers for the
+    /// whole element loop instead of being reloaded through a reference on every lane group
+    /// (the kernels' stores through raw pointers could alias any reference the compiler
+    /// cannot prove otherwise).
+    #[inline(always)]
+    fn local_copy(&self) -> Self {
+        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
+    }
     /// True for the interleaved layout `x0 y0 z0 x1 …` (stride 3, components adjacent).
     #[inline(always)]
     fn is_xyz(&self) -> bool {
@@ -306,6 +314,12 @@ impl<E> Src3<'_, E> {
 }
 
 impl<E> Dst3<'_, E> {
+    /// As [`Src3::local_copy`]; the copy writes the same elements, so only the kernel that
+    /// holds the original may use it.
+    #[inline(always)]
+    fn local_copy(&self) -> Self {
+        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
+    }
     /// True for the interleaved layout (as [`Src3::is_xyz`]).
     #[inline(always)]
     fn is_xyz(&self) -> bool {
@@ -345,6 +359,14 @@ impl<E: Copy> Dst3<'_, E> {
             // SAFETY: as above.
             unsafe { *p.add(i * self.stride) = v };
         }
+    }
+}
+
+impl<E> Dst1<'_, E> {
+    /// As [`Dst3::local_copy`].
+    #[inline(always)]
+    fn local_copy(&self) -> Self {
+        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
     }
 }
 
@@ -544,12 +566,14 @@ fn active_lanes<L: Lanes>(active: Option<&[u8]>, start: usize, width: usize) -> 
 #[inline(always)]
 fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
     let l2 = w.length_squared();
-    let usable = lanes::gt(l2, L::c(0.0)) & lanes::is_finite(l2);
     let eps = <L::Elem as num_traits::Float>::epsilon();
-    let off_unit = lanes::gt(lanes::abs(l2 - L::c(1.0)), L::c(64.0) * L::splat(eps));
-    if !off_unit.any() {
-        return (w, usable); // the common case: unit directions cost no square root
+    // The common case, one test for the group: every direction is unit (within 64 ulp of
+    // length 1; NaN fails the test), hence usable and left as it is.
+    if lanes::le(lanes::abs(l2 - L::c(1.0)), L::c(64.0) * L::splat(eps)).all() {
+        return (w, L::Mask::splat(true));
     }
+    let usable = lanes::gt(l2, L::c(0.0)) & lanes::is_finite(l2);
+    let off_unit = lanes::gt(lanes::abs(l2 - L::c(1.0)), L::c(64.0) * L::splat(eps));
     // `w / |w|` as `Material` computes it, so the f64 batch path is bit-identical to it.
     let len = lanes::select(off_unit, lanes::sqrt(l2), L::c(1.0));
     (w / len, usable)
@@ -571,6 +595,9 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     lobes: Option<u32>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
+    let (wi, wo) = (&wi.local_copy(), &wo.local_copy());
+    let (f, pdf) = (f.map(Dst3::local_copy), pdf.map(Dst1::local_copy));
+    let (f, pdf) = (f.as_ref(), pdf.as_ref());
     // A lobe mask of none of the lobes: zero values and densities.
     let nothing = lobes == Some(0);
     let mut start = range.0;
@@ -667,6 +694,9 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
     lobes: Option<u32>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
+    let (wo, u) = (&wo.local_copy(), &u.local_copy());
+    let out =
+        &SampleOut { wi: out.wi.local_copy(), weight: out.weight.local_copy(), pdf: out.pdf.local_copy(), flags: None };
     let mut start = range.0;
     let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
     while start < range.1 {
@@ -1189,6 +1219,9 @@ fn eval_pdf_varying_kernel<L: Lanes>(
     pdf: Option<&Dst1<L::Elem>>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
+    let (wi, wo) = (&wi.local_copy(), &wo.local_copy());
+    let (f, pdf) = (f.map(Dst3::local_copy), pdf.map(Dst1::local_copy));
+    let (f, pdf) = (f.as_ref(), pdf.as_ref());
     let mut start = range.0;
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
@@ -1245,6 +1278,9 @@ fn sample_varying_kernel<L: Lanes>(
     flags: Option<*mut u32>,
 ) -> BatchReport {
     let mut report = BatchReport::default();
+    let (wo, u) = (&wo.local_copy(), &u.local_copy());
+    let out =
+        &SampleOut { wi: out.wi.local_copy(), weight: out.weight.local_copy(), pdf: out.pdf.local_copy(), flags: None };
     let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
     let mut start = range.0;
     while start < range.1 {

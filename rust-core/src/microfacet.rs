@@ -210,9 +210,7 @@ impl<T: Lanes> Microfacet<T> {
                 MaskingKind::Separable => (zi + si) * (zo + so),
                 _ => T::c(2.0) * (zo * si + zi * so),
             };
-            let (sx, sy) = (m.x * self.inv_alpha.0, m.y * self.inv_alpha.1);
-            let t = sx * sx + sy * sy + m.z * m.z;
-            let d_denominator = T::c(std::f64::consts::PI) * self.alpha_x * self.alpha_y * t * t;
+            let d_denominator = self.ggx_d_denominator(m);
             let value = lanes::div_fast(T::c(1.0), d_denominator * visibility_denominator);
             let pdf = lanes::div_fast(T::c(1.0), d_denominator * (T::c(2.0) * (zo + so)));
             let upper = gt(m.z, zero);
@@ -221,6 +219,14 @@ impl<T: Lanes> Microfacet<T> {
         let (d, g) = (self.d(m), self.g(wi, wo, m, masking));
         let pdf = keep(sampled, lanes::div_fast(self.g1(wo, m) * d, T::c(4.0) * wo.z));
         (lanes::div_fast(d * g, T::c(4.0) * wi.z * wo.z), gt(g, zero), pdf)
+    }
+
+    /// `1/D(m)` of GGX for an upper-hemisphere `m`: `π αx αy t²`, `t = (mx/αx)² + (my/αy)² + mz²`.
+    #[inline(always)]
+    fn ggx_d_denominator(&self, m: Vec3<T>) -> T {
+        let (sx, sy) = (m.x * self.inv_alpha.0, m.y * self.inv_alpha.1);
+        let t = sx * sx + sy * sy + m.z * m.z;
+        T::c(std::f64::consts::PI) * self.alpha_x * self.alpha_y * t * t
     }
 
     /// `√(cos²θ + α²sin²θ)` of `w` with the anisotropic `α` (GGX's masking root).
@@ -312,11 +318,29 @@ impl<T: Lanes> Microfacet<T> {
         let oh = wo.dot(h);
         let ok = defined & gt(oh, T::c(0.0)) & gt(wo.z, T::c(0.0));
         let pdf = if visible {
-            lanes::div_fast(self.g1(wo, h) * self.d(h), T::c(4.0) * wo.z)
+            self.visible_reflection_pdf(wo, h)
         } else {
             self.d(h) * lanes::max(h.z, T::c(0.0)) / (T::c(4.0) * oh)
         };
         keep(ok, pdf)
+    }
+
+    /// Solid-angle density of the direction that `wo` reflects to on a visible normal `m`
+    /// drawn by [`Self::sample_m`]: `G1(wo) D(m) / (4 cos θo)` (0 where `m` faces down). For
+    /// GGX in closed form, `1/(2π αx αy t² (cos θo + √(cos²θo + α²sin²θo)))`: one division
+    /// and one root instead of three divisions. The caller masks `wo` below the surface and
+    /// `wo·m ≤ 0`.
+    #[inline(always)]
+    #[must_use]
+    pub fn visible_reflection_pdf(&self, wo: Vec3<T>, m: Vec3<T>) -> T {
+        match self.kind {
+            // The density of `reflection_dg_pdf`, the same expression.
+            DistributionKind::Ggx => keep(
+                gt(m.z, T::c(0.0)),
+                lanes::div_fast(T::c(1.0), self.ggx_d_denominator(m) * (T::c(2.0) * (wo.z + self.ggx_root(wo)))),
+            ),
+            DistributionKind::Beckmann => lanes::div_fast(self.g1(wo, m) * self.d(m), T::c(4.0) * wo.z),
+        }
     }
 
     /// GGX visible normals by the spherical-cap method (Dupuy & Benyoub 2023).

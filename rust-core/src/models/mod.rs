@@ -379,13 +379,13 @@ impl Model {
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         match self {
-            Model::Lambert(m) => Native(m).eval(wi, wo),
-            Model::RoughConductor(m) => Native(m).eval(wi, wo),
-            Model::RoughPlastic(m) => Native(m).eval(wi, wo),
-            Model::CookTorrance(m) => Native(m).eval(wi, wo),
-            Model::Principled(m) => Native(m).eval(wi, wo),
-            Model::CoatedPaint(m) => Native(m).eval(wi, wo),
-            _ => ScalarLoop(self).eval(wi, wo),
+            Model::Lambert(m) => Native::of(m).eval(wi, wo),
+            Model::RoughConductor(m) => Native::of(m).eval(wi, wo),
+            Model::RoughPlastic(m) => Native::of(m).eval(wi, wo),
+            Model::CookTorrance(m) => Native::of(m).eval(wi, wo),
+            Model::Principled(m) => Native::of(m).eval(wi, wo),
+            Model::CoatedPaint(m) => Native::of(m).eval(wi, wo),
+            _ => ScalarLoop::of(self).eval(wi, wo),
         }
     }
 
@@ -394,13 +394,13 @@ impl Model {
     #[must_use]
     pub fn pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> L {
         match self {
-            Model::Lambert(m) => Native(m).pdf(wi, wo),
-            Model::RoughConductor(m) => Native(m).pdf(wi, wo),
-            Model::RoughPlastic(m) => Native(m).pdf(wi, wo),
-            Model::CookTorrance(m) => Native(m).pdf(wi, wo),
-            Model::Principled(m) => Native(m).pdf(wi, wo),
-            Model::CoatedPaint(m) => Native(m).pdf(wi, wo),
-            _ => ScalarLoop(self).pdf(wi, wo),
+            Model::Lambert(m) => Native::of(m).pdf(wi, wo),
+            Model::RoughConductor(m) => Native::of(m).pdf(wi, wo),
+            Model::RoughPlastic(m) => Native::of(m).pdf(wi, wo),
+            Model::CookTorrance(m) => Native::of(m).pdf(wi, wo),
+            Model::Principled(m) => Native::of(m).pdf(wi, wo),
+            Model::CoatedPaint(m) => Native::of(m).pdf(wi, wo),
+            _ => ScalarLoop::of(self).pdf(wi, wo),
         }
     }
 
@@ -409,13 +409,13 @@ impl Model {
     #[must_use]
     pub fn sample_lanes<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
         match self {
-            Model::Lambert(m) => Native(m).sample(wo, u),
-            Model::RoughConductor(m) => Native(m).sample(wo, u),
-            Model::RoughPlastic(m) => Native(m).sample(wo, u),
-            Model::CookTorrance(m) => Native(m).sample(wo, u),
-            Model::Principled(m) => Native(m).sample(wo, u),
-            Model::CoatedPaint(m) => Native(m).sample(wo, u),
-            _ => ScalarLoop(self).sample(wo, u),
+            Model::Lambert(m) => Native::of(m).sample(wo, u),
+            Model::RoughConductor(m) => Native::of(m).sample(wo, u),
+            Model::RoughPlastic(m) => Native::of(m).sample(wo, u),
+            Model::CookTorrance(m) => Native::of(m).sample(wo, u),
+            Model::Principled(m) => Native::of(m).sample(wo, u),
+            Model::CoatedPaint(m) => Native::of(m).sample(wo, u),
+            _ => ScalarLoop::of(self).sample(wo, u),
         }
     }
 
@@ -425,13 +425,13 @@ impl Model {
     #[inline(always)]
     pub fn visit_kernel<V: KernelVisitor>(&self, v: V) -> V::Output {
         match self {
-            Model::Lambert(m) => v.visit(&Native(m)),
-            Model::RoughConductor(m) => v.visit(&Native(m)),
-            Model::RoughPlastic(m) => v.visit(&Native(m)),
-            Model::CookTorrance(m) => v.visit(&Native(m)),
-            Model::Principled(m) => v.visit(&Native(m)),
-            Model::CoatedPaint(m) => v.visit(&Native(m)),
-            _ => v.visit(&ScalarLoop(self)),
+            Model::Lambert(m) => v.visit(Native::of(m)),
+            Model::RoughConductor(m) => v.visit(Native::of(m)),
+            Model::RoughPlastic(m) => v.visit(Native::of(m)),
+            Model::CookTorrance(m) => v.visit(Native::of(m)),
+            Model::Principled(m) => v.visit(Native::of(m)),
+            Model::CoatedPaint(m) => v.visit(Native::of(m)),
+            _ => v.visit(ScalarLoop::of(self)),
         }
     }
 
@@ -523,11 +523,40 @@ pub trait KernelVisitor {
     fn visit<K: LaneKernel>(self, kernel: &K) -> Self::Output;
 }
 
-/// A lane model as a kernel.
-pub struct Native<'a, B>(pub &'a B);
+/// A lane model as a kernel: the model itself, seen through another type.
+///
+/// The batch kernels receive it as `&Native<B>`, a reference straight to the model's
+/// fields, not a reference to a reference: a function argument `&T` tells the compiler that
+/// nothing writes `*T` during the call, so it hoists the parameters' conversions (f64 to
+/// f32, broadcasts, `1/α`) out of the element loop. Through a second reference (a field
+/// that holds `&B`) it could not, and converted them again for every lane group: about a
+/// tenth of a GGX conductor's instructions (docs/speed.md, session 26).
+#[repr(transparent)]
+pub struct Native<B>(pub B);
+
+impl<B> Native<B> {
+    /// The model as a kernel (no copy).
+    #[inline(always)]
+    #[must_use]
+    pub fn of(model: &B) -> &Self {
+        // SAFETY: `Native<B>` is `repr(transparent)` over `B`: same layout and validity.
+        unsafe { &*std::ptr::from_ref(model).cast::<Self>() }
+    }
+}
 
 /// A model without a lane implementation: its scalar path, one lane at a time.
-pub struct ScalarLoop<'a>(pub &'a Model);
+#[repr(transparent)]
+pub struct ScalarLoop(pub Model);
+
+impl ScalarLoop {
+    /// The model as a kernel (no copy; see [`Native`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn of(model: &Model) -> &Self {
+        // SAFETY: `ScalarLoop` is `repr(transparent)` over `Model`.
+        unsafe { &*std::ptr::from_ref(model).cast::<Self>() }
+    }
+}
 
 /// Lanes below the horizon get the normal instead (their results are discarded): models see
 /// only the inputs the scalar path lets through.
@@ -549,7 +578,7 @@ pub(crate) fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> Lane
     LaneSample { valid: valid & finite_weight, ..s }
 }
 
-impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
+impl<B: LaneBxdf + Sync> LaneKernel for Native<B> {
     const NATIVE: bool = true;
     const SHARES_EVAL_PDF: bool = B::SHARES_EVAL_PDF;
     #[inline(always)]
@@ -598,7 +627,7 @@ impl<B: LaneBxdf + Sync> LaneKernel for Native<'_, B> {
     }
 }
 
-impl LaneKernel for ScalarLoop<'_> {
+impl LaneKernel for ScalarLoop {
     const NATIVE: bool = false;
     #[inline(always)]
     fn eval<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {

@@ -264,7 +264,7 @@ impl LaneBxdf for RoughConductor {
             let om = wo.dot(m);
             let f = self.fresnel.eval(om);
             let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
-            let pdf = lanes::div_fast(mf.g1(wo, m) * mf.d(m), L::c(4.0) * wo.z);
+            let pdf = mf.visible_reflection_pdf(wo, m);
             let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
             let valid = lanes::gt(wi.z, L::c(0.0))
                 & wi.finite_mask()
