@@ -303,8 +303,8 @@ impl<E> Src3<'_, E> {
     /// (the kernels' stores through raw pointers could alias any reference the compiler
     /// cannot prove otherwise).
     #[inline(always)]
-    fn local_copy(&self) -> Self {
-        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
+    fn local_copy(&self) -> Src3<'_, E> {
+        Src3 { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
     }
     /// True for the interleaved layout `x0 y0 z0 x1 …` (stride 3, components adjacent).
     #[inline(always)]
@@ -314,11 +314,11 @@ impl<E> Src3<'_, E> {
 }
 
 impl<E> Dst3<'_, E> {
-    /// As [`Src3::local_copy`]; the copy writes the same elements, so only the kernel that
-    /// holds the original may use it.
+    /// As [`Src3::local_copy`]; the copy writes the same elements and lives no longer than
+    /// the borrow of the original, so only the kernel that holds the original may use it.
     #[inline(always)]
-    fn local_copy(&self) -> Self {
-        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
+    fn local_copy(&self) -> Dst3<'_, E> {
+        Dst3 { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
     }
     /// True for the interleaved layout (as [`Src3::is_xyz`]).
     #[inline(always)]
@@ -365,8 +365,8 @@ impl<E: Copy> Dst3<'_, E> {
 impl<E> Dst1<'_, E> {
     /// As [`Dst3::local_copy`].
     #[inline(always)]
-    fn local_copy(&self) -> Self {
-        Self { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
+    fn local_copy(&self) -> Dst1<'_, E> {
+        Dst1 { p: self.p, stride: self.stride, n: self.n, _life: PhantomData }
     }
 }
 

@@ -266,7 +266,9 @@ impl LaneBxdf for RoughConductor {
             let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
             let pdf = mf.visible_reflection_pdf(wo, m);
             let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
-            let valid = lanes::gt(wi.z, L::c(0.0))
+            // `wo` above the surface: the closed-form density does not vanish below it.
+            let valid = lanes::gt(wo.z, L::c(0.0))
+                & lanes::gt(wi.z, L::c(0.0))
                 & wi.finite_mask()
                 & lanes::gt(om, L::c(0.0))
                 & lanes::gt(pdf, L::c(0.0))
