@@ -110,10 +110,7 @@ impl<T: Lanes> Microfacet<T> {
         let z2 = m.z * m.z;
         let pi = T::c(std::f64::consts::PI);
         let d = match self.kind {
-            DistributionKind::Ggx => {
-                let t = sx * sx + sy * sy + z2;
-                lanes::div_fast(T::c(1.0), pi * ax * ay * t * t)
-            }
+            DistributionKind::Ggx => lanes::div_fast(T::c(1.0), self.ggx_d_denominator(m)),
             DistributionKind::Beckmann => {
                 let e = lanes::div_fast(sx * sx + sy * sy, z2);
                 lanes::div_fast(lanes::exp(-e), pi * ax * ay * z2 * z2)
