@@ -544,6 +544,82 @@ unsafe fn store1<L: Lanes>(d: &Dst1<L::Elem>, start: usize, width: usize, v: L) 
     unsafe { store_comp(d.p, d.stride, start, width, v) }
 }
 
+/// How the full-group loops read and write a view of three components with a stride:
+/// interleaved `xyz` (`Some(true)`), unit-stride components (`Some(false)`), or neither
+/// (`None`: only the general loop).
+#[inline(always)]
+fn dense_layout(interleaved: bool, stride: usize) -> Option<bool> {
+    if interleaved {
+        Some(true)
+    } else {
+        (stride == 1).then_some(false)
+    }
+}
+
+impl<E> Src3<'_, E> {
+    /// [`dense_layout`] of this view.
+    #[inline(always)]
+    fn dense(&self) -> Option<bool> {
+        dense_layout(self.is_xyz(), self.stride)
+    }
+}
+
+impl<E> Dst3<'_, E> {
+    /// [`dense_layout`] of this view.
+    #[inline(always)]
+    fn dense(&self) -> Option<bool> {
+        dense_layout(self.is_xyz(), self.stride)
+    }
+}
+
+/// The full lane group at `start` of a dense view (`xyz` as [`Src3::dense`] reported it).
+///
+/// # Safety
+/// `start + WIDTH ≤ n` and `xyz == s.dense() == Some(xyz)`.
+#[inline(always)]
+unsafe fn load3_full<L: Lanes>(s: &Src3<L::Elem>, xyz: bool, start: usize) -> Vec3<L> {
+    // SAFETY: the caller's contract: the group's values exist in the reported layout.
+    unsafe {
+        if xyz {
+            let [x, y, z] = L::load_xyz_ptr(s.p[0].add(3 * start));
+            Vec3::new(x, y, z)
+        } else {
+            Vec3::new(L::load_ptr(s.p[0].add(start)), L::load_ptr(s.p[1].add(start)), L::load_ptr(s.p[2].add(start)))
+        }
+    }
+}
+
+/// Stores the full lane group at `start` of a dense view.
+///
+/// # Safety
+/// As [`load3_full`].
+#[inline(always)]
+unsafe fn store3_full<L: Lanes>(d: &Dst3<L::Elem>, xyz: bool, start: usize, v: [L; 3]) {
+    // SAFETY: as load3_full.
+    unsafe {
+        if xyz {
+            L::store_xyz_ptr(v, d.p[0].add(3 * start));
+        } else {
+            v[0].store_ptr(d.p[0].add(start));
+            v[1].store_ptr(d.p[1].add(start));
+            v[2].store_ptr(d.p[2].add(start));
+        }
+    }
+}
+
+/// [`sanitize`] for a pair of directions, with one test for the common case (both unit).
+#[inline(always)]
+fn sanitize_pair<L: Lanes>(a: Vec3<L>, o: Vec3<L>) -> (Vec3<L>, Vec3<L>, L::Mask) {
+    let tolerance = L::c(64.0) * L::splat(<L::Elem as num_traits::Float>::epsilon());
+    let a_unit = lanes::le(lanes::abs(a.length_squared() - L::c(1.0)), tolerance);
+    let o_unit = lanes::le(lanes::abs(o.length_squared() - L::c(1.0)), tolerance);
+    if (a_unit & o_unit).all() {
+        return (a, o, L::Mask::splat(true));
+    }
+    let ((a, a_ok), (o, o_ok)) = (sanitize(a), sanitize(o));
+    (a, o, a_ok & o_ok)
+}
+
 /// Active lanes: all below `width`, and those whose `active` byte is non-zero.
 #[inline(always)]
 fn active_lanes<L: Lanes>(active: Option<&[u8]>, start: usize, width: usize) -> L::Mask {
@@ -601,6 +677,9 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     // A lobe mask of none of the lobes: zero values and densities.
     let nothing = lobes == Some(0);
     let mut start = range.0;
+    if active.is_none() && scale.is_none() && lobes.is_none() {
+        start = eval_pdf_full_groups::<L, K>(model, range, wi, wo, f, pdf, &mut report);
+    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
         let on = active_lanes::<L>(active, start, width);
@@ -661,6 +740,60 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     report
 }
 
+/// The full lane groups of a plain call — every element active, no scales, no lobe mask,
+/// every view dense ([`Src3::dense`]) — without the general loop's per-group layout tests
+/// and masks: the common call of a renderer. Returns where the general loop goes on
+/// (`range.0` when the call is not plain; the tail of a partial group otherwise).
+#[inline(always)]
+fn eval_pdf_full_groups<L: Lanes, K: LaneKernel>(
+    model: &K,
+    range: (usize, usize),
+    wi: &Src3<L::Elem>,
+    wo: &Src3<L::Elem>,
+    f: Option<&Dst3<L::Elem>>,
+    pdf: Option<&Dst1<L::Elem>>,
+    report: &mut BatchReport,
+) -> usize {
+    let (Some(wi_xyz), Some(wo_xyz)) = (wi.dense(), wo.dense()) else {
+        return range.0;
+    };
+    let f_xyz = match f.map(Dst3::dense) {
+        Some(None) => return range.0,
+        dense => dense.flatten().unwrap_or(false),
+    };
+    if pdf.is_some_and(|p| p.stride != 1) {
+        return range.0;
+    }
+    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
+    let mut start = range.0;
+    while start < end {
+        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
+        // functions), each read in the layout `dense` reported.
+        let (a, o) = unsafe { (load3_full::<L>(wi, wi_xyz, start), load3_full::<L>(wo, wo_xyz, start)) };
+        let (a, o, ok) = sanitize_pair(a, o);
+        if !ok.all() {
+            report.record(start, L::WIDTH, !ok, L::Mask::splat(false));
+        }
+        let (v, p) = match (f, pdf) {
+            (Some(_), Some(_)) if K::SHARES_EVAL_PDF => {
+                let (v, p) = model.eval_pdf(a, o);
+                (Some(v), Some(p))
+            }
+            _ => (f.map(|_| model.eval(a, o)), pdf.map(|_| model.pdf(a, o))),
+        };
+        // SAFETY: as the loads.
+        if let (Some(f), Some(v)) = (f, v) {
+            let v = Rgb::select(ok, v, Rgb::zero());
+            unsafe { store3_full(f, f_xyz, start, [v.r, v.g, v.b]) };
+        }
+        if let (Some(pdf), Some(p)) = (pdf, p) {
+            unsafe { lanes::keep(ok, p).store_ptr(pdf.p.add(start)) };
+        }
+        start += L::WIDTH;
+    }
+    start
+}
+
 /// Outputs of [`sample`].
 #[derive(Debug)]
 pub struct SampleOut<'a, E> {
@@ -698,18 +831,17 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
     let out =
         &SampleOut { wi: out.wi.local_copy(), weight: out.weight.local_copy(), pdf: out.pdf.local_copy(), flags: None };
     let mut start = range.0;
-    let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
+    if active.is_none() && lobes.is_none() {
+        start = sample_full_groups::<L, K>(model, range, wo, u, out, flags, &mut report);
+    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
         let on = active_lanes::<L>(active, start, width);
         let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
-        let uu = unsafe { load3::<L>(u, start, width, [0.5; 3]) };
-        let u_ok = lanes::is_finite(uu.x) & lanes::is_finite(uu.y) & lanes::is_finite(uu.z);
+        let (uc, u_ok) = uniforms(unsafe { load3::<L>(u, start, width, [0.5; 3]) });
         if !((o_ok & u_ok) | !on).all() {
             report.record(start, width, on & !o_ok, on & !u_ok);
         }
-        let (lo, hi) = (L::c(0.0), L::splat(below_one));
-        let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
         let s: LaneSample<L> = match lobes {
             None => model.sample(o, uc),
             Some(l) => {
@@ -722,6 +854,73 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
         start += width;
     }
     report
+}
+
+/// Uniform numbers as the samplers take them: clamped into [0, 1), and which lanes were finite.
+#[inline(always)]
+fn uniforms<L: Lanes>(u: Vec3<L>) -> ([L; 3], L::Mask) {
+    let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
+    let (lo, hi) = (L::c(0.0), L::splat(below_one));
+    let finite = lanes::is_finite(u.x) & lanes::is_finite(u.y) & lanes::is_finite(u.z);
+    ([lanes::clamp(u.x, lo, hi), lanes::clamp(u.y, lo, hi), lanes::clamp(u.z, lo, hi)], finite)
+}
+
+/// As [`eval_pdf_full_groups`] for [`sample_kernel`] (every element active, no lobe mask,
+/// every view dense).
+#[inline(always)]
+fn sample_full_groups<L: Lanes, K: LaneKernel>(
+    model: &K,
+    range: (usize, usize),
+    wo: &Src3<L::Elem>,
+    u: &Src3<L::Elem>,
+    out: &SampleOut<L::Elem>,
+    flags: Option<*mut u32>,
+    report: &mut BatchReport,
+) -> usize {
+    let (Some(wo_xyz), Some(u_xyz)) = (wo.dense(), u.dense()) else {
+        return range.0;
+    };
+    let (Some(wi_xyz), Some(weight_xyz)) = (out.wi.dense(), out.weight.dense()) else {
+        return range.0;
+    };
+    if out.pdf.stride != 1 {
+        return range.0;
+    }
+    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
+    let mut start = range.0;
+    while start < end {
+        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by `sample`), each
+        // read and written in the layout `dense` reported.
+        let (o, o_ok) = sanitize(unsafe { load3_full::<L>(wo, wo_xyz, start) });
+        let (uc, u_ok) = uniforms(unsafe { load3_full::<L>(u, u_xyz, start) });
+        let inputs_ok = o_ok & u_ok;
+        if !inputs_ok.all() {
+            report.record(start, L::WIDTH, !o_ok, !u_ok);
+        }
+        let s = model.sample(o, uc);
+        let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, &s);
+        // SAFETY: as the loads; the flags hold n values (the caller's contract).
+        unsafe {
+            store3_full(&out.wi, wi_xyz, start, wi);
+            store3_full(&out.weight, weight_xyz, start, weight);
+            pdf.store_ptr(out.pdf.p.add(start));
+            if let Some(fl) = flags {
+                store_flags(fl, start, L::WIDTH, L::Mask::splat(true), inputs_ok, good, s.delta);
+            }
+        }
+        start += L::WIDTH;
+    }
+    start
+}
+
+/// A lane group of samples with zeros where the inputs or the sample are invalid: the mask
+/// of good lanes, `wi`, the weight and the density.
+#[inline(always)]
+fn zero_unless_good<L: Lanes>(inputs_ok: L::Mask, s: &LaneSample<L>) -> (L::Mask, [L; 3], [L; 3], L) {
+    let good = inputs_ok & s.valid;
+    let wi = Vec3::select(good, s.wi, Vec3::zero());
+    let weight = Rgb::select(good, s.weight, Rgb::zero());
+    (good, [wi.x, wi.y, wi.z], [weight.r, weight.g, weight.b], lanes::keep(good, s.pdf))
 }
 
 /// Stores one lane group of samples (zero where the inputs or the sample are invalid) and
@@ -739,31 +938,39 @@ unsafe fn store_sample<L: Lanes>(
     inputs_ok: L::Mask,
     s: &LaneSample<L>,
 ) {
-    let good = inputs_ok & s.valid;
-    let wi = Vec3::select(good, s.wi, Vec3::zero());
-    let weight = Rgb::select(good, s.weight, Rgb::zero());
+    let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, s);
     // SAFETY: the caller guarantees the outputs hold start + width values.
     unsafe {
-        store3(&out.wi, start, width, [wi.x, wi.y, wi.z]);
-        store3(&out.weight, start, width, [weight.r, weight.g, weight.b]);
-        store1(&out.pdf, start, width, lanes::keep(good, s.pdf));
+        store3(&out.wi, start, width, wi);
+        store3(&out.weight, start, width, weight);
+        store1(&out.pdf, start, width, pdf);
     }
     if let Some(fl) = flags {
-        for j in 0..width {
-            let v = if !on.lane(j) {
-                0
-            } else if !inputs_ok.lane(j) {
-                SAMPLE_FAILED | SAMPLE_INVALID_INPUT
-            } else if !good.lane(j) {
-                SAMPLE_FAILED
-            } else if s.delta.lane(j) {
-                SAMPLE_DELTA
-            } else {
-                0
-            };
-            // SAFETY: the flags slice holds start + width values (the caller's contract).
-            unsafe { *fl.add(start + j) = v };
-        }
+        // SAFETY: as above.
+        unsafe { store_flags(fl, start, width, on, inputs_ok, good, s.delta) };
+    }
+}
+
+/// Writes the [`SampleOut::flags`] of one lane group.
+///
+/// # Safety
+/// `fl` holds `start + width` values.
+#[inline(always)]
+unsafe fn store_flags<M: Mask>(fl: *mut u32, start: usize, width: usize, on: M, inputs_ok: M, good: M, delta: M) {
+    for j in 0..width {
+        let v = if !on.lane(j) {
+            0
+        } else if !inputs_ok.lane(j) {
+            SAMPLE_FAILED | SAMPLE_INVALID_INPUT
+        } else if !good.lane(j) {
+            SAMPLE_FAILED
+        } else if delta.lane(j) {
+            SAMPLE_DELTA
+        } else {
+            0
+        };
+        // SAFETY: the flags slice holds start + width values (the caller's contract).
+        unsafe { *fl.add(start + j) = v };
     }
 }
 
@@ -1281,24 +1488,20 @@ fn sample_varying_kernel<L: Lanes>(
     let (wo, u) = (&wo.local_copy(), &u.local_copy());
     let out =
         &SampleOut { wi: out.wi.local_copy(), weight: out.weight.local_copy(), pdf: out.pdf.local_copy(), flags: None };
-    let below_one = <L::Elem as Real>::of(1.0) - <L::Elem as num_traits::Float>::epsilon() * <L::Elem as Real>::of(0.5);
     let mut start = range.0;
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
         let on = active_lanes::<L>(active, start, width);
         // SAFETY: as in eval_pdf_varying_kernel.
         let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
-        let uu = unsafe { load3::<L>(u, start, width, [0.5; 3]) };
+        let (uc, u_ok) = uniforms(unsafe { load3::<L>(u, start, width, [0.5; 3]) });
         let (e, p_ok) = unsafe { load_element::<L>(vp, tex, start, width) };
-        let u_ok = lanes::is_finite(uu.x) & lanes::is_finite(uu.y) & lanes::is_finite(uu.z);
         if !((o_ok & u_ok) | !on).all() {
             report.record(start, width, on & !o_ok, on & !u_ok);
         }
         if !(p_ok | !on | !(o_ok & u_ok)).all() {
             report.record_params(start, width, on & o_ok & u_ok & !p_ok);
         }
-        let (lo, hi) = (L::c(0.0), L::splat(below_one));
-        let uc = [lanes::clamp(uu.x, lo, hi), lanes::clamp(uu.y, lo, hi), lanes::clamp(uu.z, lo, hi)];
         let above = lanes::gt(o.z, L::c(HORIZON_COS));
         let s = checked_sample(vp.sample_lanes(&e, above_or_up(above, o), uc), above);
         // SAFETY: start + width ≤ n for every output (checked by `sample_varying`).

@@ -470,9 +470,10 @@ fn speed_error_rows(n: usize) -> Vec<ReportRow> {
             error: error_stats(&fast_f64, &reference),
         });
     }
-    // The conductor Fresnel's quintic fit, which only the AVX-512 lanes use: the GGX gold
-    // conductor's f32 batch eval with the fit against the same model with the exact formula
-    // everywhere (timed side by side); error of the fitted batch against the f64 reference.
+    // The conductor Fresnel's fits, which only the SIMD lanes use (AVX-512: 32 quintic pieces
+    // in μ; AVX2: 8 pieces of degree 7 in √μ): the GGX gold conductor's f32 batch eval with
+    // the fit of this CPU's level against the same model with the exact formula everywhere
+    // (timed side by side); error of the fitted batch against the f64 reference.
     let ggx_au =
         r#"{"model": "rough_conductor", "distribution": "ggx", "alpha_u": 0.2, "alpha_v": 0.2, "material": "Au"}"#;
     if let Ok(fitted) = Material::from_json(ggx_au) {
@@ -487,12 +488,14 @@ fn speed_error_rows(n: usize) -> Vec<ReportRow> {
             let reference = reference_values(&fitted, &inp);
             let exact_error = error_stats(&batch_values(&exact, &inp), &reference);
             rows.push(ReportRow {
-                what: "Conductor Fresnel fit (32 quintic pieces, AVX-512 lanes only)".into(),
+                what: "Conductor Fresnel fit (AVX-512: 32 quintic pieces in μ; AVX2: 8 degree-7 pieces in √μ)".into(),
                 comparison: format!(
-                    "GGX gold batch eval, fit vs exact formula; error vs f64 (exact formula in f32: max {:.1e}, rms {:.1e}; fit alone {:.1e})",
+                    "GGX gold batch eval at {}, fit vs exact formula; error vs f64 (exact formula in f32: max {:.1e}, rms {:.1e}; fits alone {:.1e} (AVX-512), {:.1e} (AVX2))",
+                    crate::batch::simd_level().name(),
                     exact_error.max,
                     exact_error.rms,
-                    rc.fresnel.fit_error().unwrap_or(f64::NAN)
+                    rc.fresnel.fit_error().unwrap_or(f64::NAN),
+                    rc.fresnel.fit8_error().unwrap_or(f64::NAN)
                 ),
                 ns_fast: time_batch_eval(&fitted, &inp, reps),
                 ns_reference: time_batch_eval(&exact, &inp, reps),

@@ -6,7 +6,7 @@
 
 use crate::lanes::{self, Lanes};
 use crate::math::Rgb;
-use crate::poly_fit::MuPolyFit;
+use crate::poly_fit::{MuFit32, SqrtMuFit8};
 use crate::real::Real;
 use std::sync::Arc;
 
@@ -168,39 +168,52 @@ pub fn conductor_rgb<T: Lanes>(cos_i: T, eta: Rgb<T>, k: Rgb<T>) -> Rgb<T> {
 }
 
 /// The conductor Fresnel of one material (`η + i·k` per RGB channel) as models hold it: the
-/// exact [`conductor_rgb`], and for lanes with register lookups (AVX-512) its measured
-/// [`MuPolyFit`] — 6 permutes and 5 FMAs per channel instead of 2 square roots and 2
-/// divisions. The f64 reference and scalar f32 paths always take the exact formula; a
-/// material whose fit misses [`crate::poly_fit::FIT_TOLERANCE`] (an index-matched or
-/// nearly matched interface) takes it everywhere.
+/// exact [`conductor_rgb`], and for SIMD lanes its measured piecewise-polynomial fits
+/// ([`crate::poly_fit`]): AVX-512 lanes 32 quintic pieces in `μ` (6 permutes and 5 FMAs per
+/// channel), AVX2 lanes 8 pieces of degree 7 in `√μ` (8 permutes and 7 FMAs per channel, one
+/// square root for the three) — instead of 2 square roots and 2 divisions per channel. The
+/// f64 reference and scalar f32 paths always take the exact formula; a material whose fit
+/// misses [`crate::poly_fit::FIT_TOLERANCE`] (an index-matched or nearly matched interface)
+/// takes it on those lanes too.
 #[derive(Clone, Debug)]
 pub struct ConductorFresnel {
     /// Real part of the IOR per channel.
     pub eta: [f64; 3],
     /// Imaginary part of the IOR per channel.
     pub k: [f64; 3],
-    fit: Option<Arc<MuPolyFit>>,
+    fit: Option<Arc<MuFit32>>,
+    fit8: Option<Arc<SqrtMuFit8>>,
 }
 
 impl ConductorFresnel {
-    /// The Fresnel of `η + i·k`, with its fit when the fit is within tolerance.
+    /// The Fresnel of `η + i·k`, with its fits where they are within tolerance.
     #[must_use]
     pub fn new(eta: [f64; 3], k: [f64; 3]) -> Self {
-        let fit = MuPolyFit::new(|mu| [0, 1, 2].map(|c| conductor(mu, eta[c], k[c]))).map(Arc::new);
-        Self { eta, k, fit }
+        let exact = |mu: f64| [0, 1, 2].map(|c| conductor(mu, eta[c], k[c]));
+        let fit = MuFit32::new(exact).map(Arc::new);
+        let fit8 = SqrtMuFit8::new(exact).map(Arc::new);
+        Self { eta, k, fit, fit8 }
     }
 
-    /// The same material without the fit: every path evaluates the exact formula (for
-    /// measuring what the fit saves and costs).
+    /// The same material without the fits: every path evaluates the exact formula (for
+    /// measuring what the fits save and cost).
     #[must_use]
     pub fn exact_only(&self) -> Self {
-        Self { fit: None, ..self.clone() }
+        Self { fit: None, fit8: None, ..self.clone() }
     }
 
-    /// The fit's measured largest relative error, or `None` when the exact formula is used.
+    /// The AVX-512 fit's measured largest relative error, or `None` when the exact formula
+    /// is used.
     #[must_use]
     pub fn fit_error(&self) -> Option<f64> {
         self.fit.as_ref().map(|f| f.max_relative_error())
+    }
+
+    /// The AVX2 fit's measured largest relative error, or `None` when the exact formula is
+    /// used.
+    #[must_use]
+    pub fn fit8_error(&self) -> Option<f64> {
+        self.fit8.as_ref().map(|f| f.max_relative_error())
     }
 
     /// Reflectance per channel at incidence `cos_i` (clamped to `[0, 1]`).
@@ -209,6 +222,10 @@ impl ConductorFresnel {
     pub fn eval<L: Lanes>(&self, cos_i: L) -> Rgb<L> {
         if L::REGISTER_LOOKUP {
             if let Some(fit) = &self.fit {
+                return fit.eval_lanes(cos_i);
+            }
+        } else if L::PERMUTE8 {
+            if let Some(fit) = &self.fit8 {
                 return fit.eval_lanes(cos_i);
             }
         }
@@ -399,7 +416,10 @@ mod tests {
             for (eta, k) in materials() {
                 let fresnel = ConductorFresnel::new(eta, k);
                 let fit_error = fresnel.fit_error().expect("a measured metal has a fit");
+                let fit8_error = fresnel.fit8_error().expect("a measured metal has an 8-piece fit");
+                eprintln!("eta {eta:.3?} k {k:.3?}: fit errors {fit_error:.2e} (32 pieces), {fit8_error:.2e} (8)");
                 assert!(fit_error < 3e-7, "fit error {fit_error} for eta {eta:?}, k {k:?}");
+                assert!(fit8_error < 3e-7, "8-piece fit error {fit8_error} for eta {eta:?}, k {k:?}");
                 for j in 0..=4096 / L::WIDTH {
                     let mu = L::from_fn(|i| L::Elem::of(((j * L::WIDTH + i) as f64 / 4096.0).min(1.0)));
                     let f = fresnel.eval(mu);
@@ -428,6 +448,7 @@ mod tests {
             }
             crate::lanes::x86::check_each_simd_type!(simd);
         }
-        assert!(ConductorFresnel::new([1.0; 3], [0.0; 3]).fit_error().is_none(), "index-matched");
+        let matched = ConductorFresnel::new([1.0; 3], [0.0; 3]);
+        assert!(matched.fit_error().is_none() && matched.fit8_error().is_none(), "index-matched");
     }
 }

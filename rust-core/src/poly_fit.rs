@@ -2,67 +2,82 @@
 //!
 //! Some per-material functions of one cosine cost far more to evaluate than to look up: the
 //! exact conductor Fresnel takes two square roots and two divisions per channel, which is
-//! half of a GGX conductor's AVX-512 eval. For a fixed material they are smooth functions of
-//! `μ` alone, so [`MuPolyFit`] replaces them by 32 quintic pieces (uniform in `μ`, each the
-//! interpolant at the six Chebyshev–Lobatto points of its piece, so the pieces join
-//! continuously). With AVX-512 every coefficient is one two-register permute
-//! (`vpermt2ps`, [`Lanes::lookup_f32_`]), so a channel costs six permutes and five FMAs.
+//! a quarter to a half of a GGX conductor's eval. For a fixed material they are smooth
+//! functions of `μ` alone, so a [`MuPolyFit`] replaces them by polynomial pieces, each the
+//! interpolant at the Chebyshev–Lobatto points of its piece (so the pieces join
+//! continuously), with every coefficient read by one register permute:
+//!
+//! - [`MuFit32`] (AVX-512): 32 quintic pieces uniform in `μ`; a coefficient is one
+//!   two-register permute (`vpermt2ps`, [`Lanes::lookup_f32_`]): six permutes and five FMAs
+//!   per channel.
+//! - [`SqrtMuFit8`] (AVX2): 8 pieces of degree 7 uniform in `√μ`, where a conductor's
+//!   Fresnel bends fastest (grazing incidence) getting the narrowest pieces in `μ`; a
+//!   coefficient is one `vpermps` ([`Lanes::lookup8_f32_`]): eight permutes and seven FMAs per
+//!   channel, and one square root for all three.
 //!
 //! A fit is only an implementation of the function it replaces: [`MuPolyFit::new`] measures
 //! its largest relative error against the exact function (at 64 points per piece, with the
 //! coefficients rounded to f32 as the lanes hold them) and returns `None` when it exceeds
 //! [`FIT_TOLERANCE`] or the function is not positive (an index-matched conductor, `F ≡ 0`).
 //! Callers then keep the exact formula. The one-lane paths (the f64 reference and scalar f32)
-//! never use fits; only lanes with [`Lanes::REGISTER_LOOKUP`] do.
+//! never use fits; only lanes with [`Lanes::REGISTER_LOOKUP`] (the 32-piece fit) or
+//! [`Lanes::PERMUTE8`] (the 8-piece fit) do.
 
 use crate::lanes::{self, Lanes};
 use crate::math::Rgb;
 
-/// Number of pieces: 32 coefficients per power fill the two registers of one AVX-512
-/// two-source permute.
-pub const PIECES: usize = 32;
-/// Degree of each piece.
-pub const DEGREE: usize = 5;
-/// The largest relative error a fit may have against its function to be used (measured:
-/// 6e-8 for gold, 1.9e-7 for aluminium, 1.1e-7 for a dielectric of index 1.5 — at or below
-/// the rounding of the exact formula evaluated in f32).
+/// The largest relative error a fit may have against its function to be used (measured for
+/// [`MuFit32`]: 6e-8 for gold, 1.9e-7 for aluminium, 1.1e-7 for a dielectric of index 1.5;
+/// for [`SqrtMuFit8`] see `fresnel`'s tests — at or below the rounding of the exact formula
+/// evaluated in f32).
 pub const FIT_TOLERANCE: f64 = 1e-6;
 
-/// An RGB function of `μ ∈ [0, 1]` as [`PIECES`] polynomials of degree [`DEGREE`] in the
-/// position `t ∈ [0, 1]` within piece `i = ⌊32 μ⌋`, coefficients rounded to f32.
+/// The AVX-512 fit: 32 quintic pieces uniform in `μ` (the 32 entries of a coefficient fill
+/// the two registers of one two-source permute).
+pub type MuFit32 = MuPolyFit<32, 6, false>;
+
+/// The AVX2 fit: 8 pieces of degree 7 uniform in `√μ` (the 8 entries of a coefficient fill
+/// one register of `vpermps`).
+pub type SqrtMuFit8 = MuPolyFit<8, 8, true>;
+
+/// An RGB function of `μ ∈ [0, 1]` as `PIECES` polynomials with `POWERS` coefficients
+/// (degree `POWERS − 1`) in the position `t ∈ [0, 1]` within piece `i = ⌊PIECES · s⌋`, where
+/// `s = √μ` if `SQRT`, else `s = μ`; coefficients rounded to f32.
 #[derive(Clone, Debug)]
-pub struct MuPolyFit {
-    /// `coefficients[channel][power]` holds the coefficient of `t^(DEGREE − power)` for every
-    /// piece (Horner order: highest power first).
-    coefficients: Box<[[[f32; PIECES]; DEGREE + 1]; 3]>,
+pub struct MuPolyFit<const PIECES: usize, const POWERS: usize, const SQRT: bool> {
+    /// `coefficients[channel][power]` holds the coefficient of `t^(POWERS − 1 − power)` for
+    /// every piece (Horner order: highest power first).
+    coefficients: Box<[[[f32; PIECES]; POWERS]; 3]>,
     /// The largest relative error against the fitted function, measured at construction.
     max_relative_error: f64,
 }
 
-impl MuPolyFit {
+impl<const PIECES: usize, const POWERS: usize, const SQRT: bool> MuPolyFit<PIECES, POWERS, SQRT> {
     /// Fits `f` (per channel) and measures the fit; `None` when its largest relative error
     /// exceeds [`FIT_TOLERANCE`] or `f` is not positive and finite at every check point.
     #[must_use]
     pub fn new(f: impl Fn(f64) -> [f64; 3]) -> Option<Self> {
-        let mut coefficients = Box::new([[[0.0f32; PIECES]; DEGREE + 1]; 3]);
+        let mut coefficients = Box::new([[[0.0f32; PIECES]; POWERS]; 3]);
+        let degree = POWERS - 1;
         // Chebyshev–Lobatto points on [0, 1]: both ends included, so neighbouring pieces
         // agree where they meet.
-        let nodes: [f64; DEGREE + 1] =
-            std::array::from_fn(|j| 0.5 - 0.5 * (j as f64 * std::f64::consts::PI / DEGREE as f64).cos());
+        let nodes: [f64; POWERS] =
+            std::array::from_fn(|j| 0.5 - 0.5 * (j as f64 * std::f64::consts::PI / degree as f64).cos());
         for piece in 0..PIECES {
-            let values: [[f64; 3]; DEGREE + 1] = nodes.map(|t| f((piece as f64 + t) / PIECES as f64));
+            let values: [[f64; 3]; POWERS] = nodes.map(|t| f(Self::mu_of((piece as f64 + t) / PIECES as f64)));
             for (c, channel) in coefficients.iter_mut().enumerate() {
                 let monomial = interpolate(&nodes, &values.map(|v| v[c]))?;
                 for (power, row) in channel.iter_mut().enumerate() {
-                    row[piece] = monomial[DEGREE - power] as f32;
+                    row[piece] = monomial[degree - power] as f32;
                 }
             }
         }
         let mut fit = Self { coefficients, max_relative_error: 0.0 };
         const CHECKS_PER_PIECE: usize = 64;
         for j in 0..=PIECES * CHECKS_PER_PIECE {
-            // Check at f32 cosines, the inputs the lanes see.
-            let mu = f64::from((j as f64 / (PIECES * CHECKS_PER_PIECE) as f64) as f32);
+            // Check at f32 cosines, the inputs the lanes see, spread as the pieces are.
+            let s = j as f64 / (PIECES * CHECKS_PER_PIECE) as f64;
+            let mu = f64::from(Self::mu_of(s) as f32);
             let exact = f(mu);
             let fitted = fit.eval_f64(mu);
             for c in 0..3 {
@@ -76,6 +91,15 @@ impl MuPolyFit {
         (fit.max_relative_error <= FIT_TOLERANCE).then_some(fit)
     }
 
+    /// `μ` at the fit's variable `s` (`s²` or `s`).
+    fn mu_of(s: f64) -> f64 {
+        if SQRT {
+            s * s
+        } else {
+            s
+        }
+    }
+
     /// The largest relative error against the fitted function, measured at construction
     /// (f32 coefficients, evaluated in f64 at 64 f32 cosines per piece).
     #[must_use]
@@ -86,19 +110,22 @@ impl MuPolyFit {
     /// The fit at `μ` (clamped to `[0, 1]`) in f64 arithmetic, from the f32 coefficients.
     #[must_use]
     pub fn eval_f64(&self, mu: f64) -> [f64; 3] {
-        let x = mu.clamp(0.0, 1.0) * PIECES as f64;
+        let mu = mu.clamp(0.0, 1.0);
+        let x = if SQRT { mu.sqrt() } else { mu } * PIECES as f64;
         let piece = (x as usize).min(PIECES - 1);
         let t = x - piece as f64;
         self.coefficients.map(|channel| channel.iter().fold(0.0, |y, row| y * t + f64::from(row[piece])))
     }
 
-    /// The fit at `μ` (clamped to `[0, 1]`) per lane: the piece's six coefficients read with
-    /// [`Lanes::lookup_f32_`], then Horner's rule with FMAs.
+    /// The fit at `μ` (clamped to `[0, 1]`) per lane: the piece's coefficients read with one
+    /// register permute each ([`Lanes::lookup8_f32_`] for 8 pieces, else
+    /// [`Lanes::lookup_f32_`]), then Horner's rule with FMAs.
     #[inline(always)]
     #[must_use]
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> Rgb<L> {
-        let x = lanes::clamp(mu, L::c(0.0), L::c(1.0)) * L::c(PIECES as f64);
-        // NaN lanes read piece 0 (`lookup_f32_` clamps) and stay NaN through `t`.
+        let mu = lanes::clamp(mu, L::c(0.0), L::c(1.0));
+        let x = if SQRT { lanes::sqrt(mu) } else { mu } * L::c(PIECES as f64);
+        // NaN lanes read piece 0 (the lookups send NaN to entry 0) and stay NaN through `t`.
         let piece = lanes::min(x.floor_(), L::c((PIECES - 1) as f64));
         let t = x - piece;
         // Written out per channel, not with a closure: closures are not inlined into the
@@ -113,11 +140,18 @@ impl MuPolyFit {
 
 /// One channel of [`MuPolyFit::eval_lanes`]: the piece's coefficients and Horner's rule.
 #[inline(always)]
-fn horner<L: Lanes>(rows: &[[f32; PIECES]; DEGREE + 1], piece: L, t: L) -> L {
-    let mut y = L::lookup_f32_(&rows[0], piece);
+fn horner<L: Lanes, const PIECES: usize, const POWERS: usize>(rows: &[[f32; PIECES]; POWERS], piece: L, t: L) -> L {
+    let lookup = |row: &[f32; PIECES]| {
+        if PIECES == 8 {
+            L::lookup8_f32_(row, piece)
+        } else {
+            L::lookup_f32_(row, piece)
+        }
+    };
+    let mut y = lookup(&rows[0]);
     let mut power = 1;
-    while power <= DEGREE {
-        y = lanes::mul_add(y, t, L::lookup_f32_(&rows[power], piece));
+    while power < POWERS {
+        y = lanes::mul_add(y, t, lookup(&rows[power]));
         power += 1;
     }
     y
@@ -125,35 +159,36 @@ fn horner<L: Lanes>(rows: &[[f32; PIECES]; DEGREE + 1], piece: L, t: L) -> L {
 
 /// The monomial coefficients (constant first) of the polynomial through `(nodes[j], values[j])`,
 /// by Gaussian elimination with partial pivoting on the Vandermonde system; `None` if singular.
-fn interpolate(nodes: &[f64; DEGREE + 1], values: &[f64; DEGREE + 1]) -> Option<[f64; DEGREE + 1]> {
-    const N: usize = DEGREE + 1;
-    let mut a = [[0.0; N + 1]; N];
-    for (row, (&t, &v)) in a.iter_mut().zip(nodes.iter().zip(values)) {
+fn interpolate<const N: usize>(nodes: &[f64; N], values: &[f64; N]) -> Option<[f64; N]> {
+    // Rows of the Vandermonde matrix, each with its right-hand side.
+    let mut a: [([f64; N], f64); N] = std::array::from_fn(|j| {
         let mut p = 1.0;
-        for entry in row.iter_mut().take(N) {
-            *entry = p;
-            p *= t;
-        }
-        row[N] = v;
-    }
+        let row = std::array::from_fn(|_| {
+            let entry = p;
+            p *= nodes[j];
+            entry
+        });
+        (row, values[j])
+    });
     for col in 0..N {
-        let pivot = (col..N).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[pivot][col] == 0.0 || !a[pivot][col].is_finite() {
+        let pivot = (col..N).max_by(|&i, &j| a[i].0[col].abs().total_cmp(&a[j].0[col].abs()))?;
+        if a[pivot].0[col] == 0.0 || !a[pivot].0[col].is_finite() {
             return None;
         }
         a.swap(col, pivot);
-        let pivot_row = a[col];
-        for row in a.iter_mut().skip(col + 1) {
+        let (pivot_row, pivot_rhs) = a[col];
+        for (row, rhs) in a.iter_mut().skip(col + 1) {
             let factor = row[col] / pivot_row[col];
             for (entry, p) in row.iter_mut().zip(pivot_row.iter()).skip(col) {
                 *entry -= factor * p;
             }
+            *rhs -= factor * pivot_rhs;
         }
     }
     let mut x = [0.0; N];
     for row in (0..N).rev() {
-        let tail: f64 = (row + 1..N).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (a[row][N] - tail) / a[row][row];
+        let tail: f64 = (row + 1..N).map(|k| a[row].0[k] * x[k]).sum();
+        x[row] = (a[row].1 - tail) / a[row].0[row];
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
@@ -167,18 +202,21 @@ mod tests {
         // A degree-5 polynomial is its own interpolant: the fit's only error is f32 rounding
         // of the coefficients (~6e-8 relative for values of order 1).
         let p = |x: f64| 1.0 + x * (0.5 + x * (-0.25 + x * (0.125 + x * (0.3 + x * 0.2))));
-        let fit = MuPolyFit::new(|x| [p(x), 2.0 * p(x), 3.0 + x]).expect("a quintic fits");
+        let fit = MuFit32::new(|x| [p(x), 2.0 * p(x), 3.0 + x]).expect("a quintic fits");
         assert!(fit.max_relative_error() < 2e-7, "{}", fit.max_relative_error());
     }
 
     #[test]
     fn a_kink_is_refused() {
         // |x − 0.3| + 0.1 has a kink inside piece 9: no quintic gets within 1e-6 of it there.
-        assert!(MuPolyFit::new(|x| [(x - 0.3).abs() + 0.1; 3]).is_none());
+        assert!(MuFit32::new(|x| [(x - 0.3).abs() + 0.1; 3]).is_none());
+        // … nor a degree-7 polynomial in √μ (the kink is at √0.3 ≈ 0.548, inside piece 4).
+        assert!(SqrtMuFit8::new(|x| [(x - 0.3).abs() + 0.1; 3]).is_none());
     }
 
     #[test]
     fn a_zero_function_is_refused() {
-        assert!(MuPolyFit::new(|_| [0.0; 3]).is_none());
+        assert!(MuFit32::new(|_| [0.0; 3]).is_none());
+        assert!(SqrtMuFit8::new(|_| [0.0; 3]).is_none());
     }
 }

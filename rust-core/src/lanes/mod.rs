@@ -86,6 +86,9 @@ pub trait Lanes:
     /// `vpermt2ps`) rather than a memory gather or per-lane loads. Kernels use tabulated fits
     /// ([`crate::poly_fit::MuPolyFit`]) in place of exact formulas only where this holds.
     const REGISTER_LOOKUP: bool = false;
+    /// Whether [`Lanes::lookup8_f32_`] is one register permute (AVX2: `vpermps`). Kernels use
+    /// the 8-piece fits ([`crate::poly_fit::SqrtMuFit8`]) only where this holds.
+    const PERMUTE8: bool = false;
 
     /// `x` in every lane.
     fn splat(x: Self::Elem) -> Self;
@@ -180,6 +183,18 @@ pub trait Lanes:
         Self::from_fn(|i| {
             let j = idx.lane(i).f64();
             let j = if j > 0.0 { j.min(last) } else { 0.0 };
+            Self::Elem::of(f64::from(table[j as usize]))
+        })
+    }
+    /// `table[i]` per lane of an 8-entry table (at least 8 entries; the first 8 are read) for
+    /// lanes `idx` holding integral values in `[0, 7]`; NaN reads entry 0, other indices read
+    /// some entry of the 8. AVX2 lanes use one `vpermps`.
+    #[inline(always)]
+    fn lookup8_f32_(table: &[f32], idx: Self) -> Self {
+        let table = &table[..8];
+        Self::from_fn(|i| {
+            let j = idx.lane(i).f64();
+            let j = if j > 0.0 { j.min(7.0) } else { 0.0 };
             Self::Elem::of(f64::from(table[j as usize]))
         })
     }

@@ -246,6 +246,7 @@ impl Lanes for F32x8 {
     type Mask = M32x8;
     type Elem = f32;
     const WIDTH: usize = 8;
+    const PERMUTE8: bool = true;
 
     #[inline(always)]
     fn splat(x: f32) -> Self {
@@ -425,6 +426,14 @@ impl Lanes for F32x8 {
         let j = idx.max_(Self::splat(0.0)).min_(Self::splat(last));
         // SAFETY: indices clamped to [0, len − 1] above; AVX2 per the module contract.
         unsafe { Self(_mm256_i32gather_ps::<4>(table.as_ptr(), _mm256_cvttps_epi32(j.0))) }
+    }
+    #[inline(always)]
+    fn lookup8_f32_(table: &[f32], idx: Self) -> Self {
+        let table: &[f32; 8] = table[..8].try_into().expect("eight entries");
+        // `vpermps` reads index bits 0–2 only, so every lane reads one of the eight entries;
+        // NaN converts to 0x8000_0000, entry 0.
+        // SAFETY: eight values at `table`; AVX2 per the module contract.
+        unsafe { Self(_mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr()), _mm256_cvttps_epi32(idx.0))) }
     }
     #[inline(always)]
     fn lookup_pairs_f32_<const N: usize>(tables: [&[f32]; N], idx: Self) -> [(Self, Self); N] {

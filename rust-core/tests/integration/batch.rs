@@ -82,6 +82,8 @@ fn close(a: f64, b: f64, rel: f64, floor: f64) -> bool {
 /// different operation order: ≤ 2e-5 relative measured 3e-6 on these sets), and stays within
 /// the f32-vs-f64 budget of the f64 reference (`lacquer check` reports 2.5e-5 for
 /// rough_conductor; 1e-4 relative + 1e-6 absolute here). Inactive and tail lanes are zero.
+/// With an active mask the general loop runs; without one the full-group loop of plain calls
+/// (then the general loop for the tail).
 #[test]
 fn eval_and_pdf_agree_with_scalar_and_reference() {
     let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -89,9 +91,11 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
     let n = 1037;
     let (wi, wo) = directions(n, 7);
     let (wi_s, wo_s) = (soa(&wi), soa(&wo));
-    let active: Vec<u8> = (0..n).map(|i| u8::from(i % 13 != 5)).collect();
-    for json in MATERIALS {
+    let mask: Vec<u8> = (0..n).map(|i| u8::from(i % 13 != 5)).collect();
+    for (json, masked) in MATERIALS.iter().flat_map(|j| [(j, true), (j, false)]) {
         let m = Material::from_json(json).unwrap();
+        let active = if masked { mask.clone() } else { vec![1; n] };
+        let active_arg = masked.then_some(&active[..]);
         for level in levels() {
             assert!(batch::set_simd_level(level));
             let mut f = [vec![7.0f32; n], vec![7.0f32; n], vec![7.0f32; n]];
@@ -102,7 +106,7 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
                 let pv = Dst1::new(&mut pdf);
                 let wiv = Src3::soa(&wi_s[0], &wi_s[1], &wi_s[2]).unwrap();
                 let wov = Src3::soa(&wo_s[0], &wo_s[1], &wo_s[2]).unwrap();
-                batch::eval_pdf(&m, &wiv, &wov, Some(&active), Some(&fv), Some(&pv)).unwrap()
+                batch::eval_pdf(&m, &wiv, &wov, active_arg, Some(&fv), Some(&pv)).unwrap()
             };
             let mut invalid = 0;
             for i in 0..n {
@@ -113,7 +117,11 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
                 let bad = !(usable(a) && usable(b));
                 if active[i] == 0 || bad {
                     invalid += usize::from(active[i] != 0);
-                    assert_eq!((got, pdf[i]), ([0.0; 3], 0.0), "{json} {level:?} element {i} (inactive or invalid)");
+                    assert_eq!(
+                        (got, pdf[i]),
+                        ([0.0; 3], 0.0),
+                        "{json} {level:?} masked {masked} element {i} (inactive or invalid)"
+                    );
                     continue;
                 }
                 let want32 = m.eval(a, b).to_array();
@@ -143,7 +151,7 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
                     assert!(close(pdf[i] as f64, p64, 2e-4, 2e-6), "{json} {level:?} pdf {i}: {} vs f64 {p64}", pdf[i]);
                 }
             }
-            assert_eq!(report.invalid_directions, invalid, "{json} {level:?}");
+            assert_eq!(report.invalid_directions, invalid, "{json} {level:?} masked {masked}");
         }
     }
 }
@@ -252,17 +260,21 @@ fn joint_eval_pdf_equals_the_separate_calls() {
         let m = &Material::from_json(name).unwrap();
         for level in levels() {
             assert!(batch::set_simd_level(level));
-            let (wiv, wov) = (Src3::interleaved(&wi_f), Src3::interleaved(&wo_f));
-            let (mut f_joint, mut p_joint) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
-            let (mut f_alone, mut p_alone) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
-            let joint = (Some(&Dst3::interleaved(&mut f_joint)), Some(&Dst1::new(&mut p_joint)));
-            batch::eval_pdf(m, &wiv, &wov, Some(&active), joint.0, joint.1).unwrap();
-            batch::eval_pdf(m, &wiv, &wov, Some(&active), Some(&Dst3::interleaved(&mut f_alone)), None).unwrap();
-            batch::eval_pdf(m, &wiv, &wov, Some(&active), None, Some(&Dst1::new(&mut p_alone))).unwrap();
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&f_joint), bits(&f_alone), "{name} {level:?}: value");
-            assert_eq!(bits(&p_joint), bits(&p_alone), "{name} {level:?}: density");
-            assert!(p_joint.iter().any(|&p| p > 0.0), "{name} {level:?}: some density");
+            // With the mask: the general loop; without: the full-group loop of plain calls.
+            for active in [Some(&active[..]), None] {
+                let (wiv, wov) = (Src3::interleaved(&wi_f), Src3::interleaved(&wo_f));
+                let (mut f_joint, mut p_joint) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+                let (mut f_alone, mut p_alone) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+                let joint = (Some(&Dst3::interleaved(&mut f_joint)), Some(&Dst1::new(&mut p_joint)));
+                batch::eval_pdf(m, &wiv, &wov, active, joint.0, joint.1).unwrap();
+                batch::eval_pdf(m, &wiv, &wov, active, Some(&Dst3::interleaved(&mut f_alone)), None).unwrap();
+                batch::eval_pdf(m, &wiv, &wov, active, None, Some(&Dst1::new(&mut p_alone))).unwrap();
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let masked = active.is_some();
+                assert_eq!(bits(&f_joint), bits(&f_alone), "{name} {level:?} masked {masked}: value");
+                assert_eq!(bits(&p_joint), bits(&p_alone), "{name} {level:?} masked {masked}: density");
+                assert!(p_joint.iter().any(|&p| p > 0.0), "{name} {level:?}: some density");
+            }
         }
         let (wiv, wov) = (Src3::interleaved(&wi_d), Src3::interleaved(&wo_d));
         let (mut f_joint, mut p_joint) = (vec![7.0f64; 3 * n], vec![7.0f64; n]);
@@ -482,7 +494,9 @@ impl Layout {
 /// bits as the structure-of-arrays one at every SIMD level, for eval, pdf and sample, with
 /// masked lanes and lengths around the lane counts (1 … 49 and 1037): each element's lane
 /// work does not depend on where its values came from. Padding and values past the end stay
-/// untouched.
+/// untouched. Calls without an active mask (the full-group loop for unit-stride and
+/// interleaved views, the general loop for the strided one and for tails) give the same bits
+/// as the masked calls at the active elements.
 #[test]
 fn layouts_give_identical_results() {
     let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -498,7 +512,9 @@ fn layouts_give_identical_results() {
                 let u: Vec<[f32; 3]> = (0..n).map(|_| [0, 1, 2].map(|_| rng.uniform() as f32)).collect();
                 let active: Vec<u8> = (0..n).map(|i| u8::from(i % 7 != 3)).collect();
                 let mut results: Vec<(Layout, Vec<[f32; 8]>)> = Vec::new();
-                for layout in layouts {
+                let mut unmasked: Vec<(Layout, Vec<[f32; 8]>)> = Vec::new();
+                for (layout, masked) in layouts.iter().flat_map(|&l| [(l, true), (l, false)]) {
+                    let mask = masked.then_some(&active[..]);
                     let (a, b, uu) = (layout.pack(&wi), layout.pack(&wo), layout.pack(&u));
                     let blank = || layout.pack(&vec![[f32::NAN; 3]; n]);
                     let (mut f, mut swi, mut sw) = (blank(), blank(), blank());
@@ -507,7 +523,7 @@ fn layouts_give_identical_results() {
                         &m,
                         &layout.src(&a, n),
                         &layout.src(&b, n),
-                        Some(&active),
+                        mask,
                         Some(&layout.dst(&mut f, n)),
                         Some(&Dst1::new(&mut pdf)),
                     )
@@ -519,7 +535,7 @@ fn layouts_give_identical_results() {
                             pdf: Dst1::new(&mut spdf),
                             flags: None,
                         };
-                        batch::sample(&m, &layout.src(&b, n), &layout.src(&uu, n), Some(&active), &mut out).unwrap();
+                        batch::sample(&m, &layout.src(&b, n), &layout.src(&uu, n), mask, &mut out).unwrap();
                     }
                     for (name, arr) in [("f", &f), ("sample wi", &swi), ("sample weight", &sw)] {
                         assert!(layout.untouched(arr, n), "{json} {level:?} n {n} {layout:?}: {name} wrote padding");
@@ -530,6 +546,10 @@ fn layouts_give_identical_results() {
                             [fv[0], fv[1], fv[2], pdf[i], w[0], w[2], s[1], spdf[i]]
                         })
                         .collect();
+                    if !masked {
+                        unmasked.push((layout, per));
+                        continue;
+                    }
                     for (i, v) in per.iter().enumerate() {
                         if active[i] == 0 {
                             assert_eq!(v, &[0.0; 8], "{json} {level:?} n {n} {layout:?}: inactive element {i}");
@@ -537,16 +557,27 @@ fn layouts_give_identical_results() {
                     }
                     results.push((layout, per));
                 }
-                let (_, want) = &results[0];
-                for (layout, got) in &results[1..] {
-                    for i in 0..n {
-                        let same = got[i].iter().zip(&want[i]).all(|(g, w)| g.to_bits() == w.to_bits());
-                        assert!(
-                            same,
-                            "{json} {level:?} n {n} {layout:?} element {i}: {:?} vs SoA {:?}",
-                            got[i], want[i]
-                        );
+                let bits = |v: &[f32; 8]| v.map(f32::to_bits);
+                for (runs, what) in [(&results, "masked"), (&unmasked, "unmasked")] {
+                    let (_, want) = &runs[0];
+                    for (layout, got) in &runs[1..] {
+                        for i in 0..n {
+                            assert_eq!(
+                                bits(&got[i]),
+                                bits(&want[i]),
+                                "{json} {level:?} n {n} {layout:?} {what} element {i}: {:?} vs SoA {:?}",
+                                got[i],
+                                want[i]
+                            );
+                        }
                     }
+                }
+                for i in (0..n).filter(|&i| active[i] != 0) {
+                    assert_eq!(
+                        bits(&unmasked[0].1[i]),
+                        bits(&results[0].1[i]),
+                        "{json} {level:?} n {n} element {i}: unmasked vs masked call"
+                    );
                 }
             }
         }
