@@ -19,11 +19,13 @@ pub fn concentric_disk<T: Lanes>(u1: T, u2: T) -> (T, T) {
     let two = T::c(2.0);
     let ox = two * u1 - T::c(1.0);
     let oy = two * u2 - T::c(1.0);
-    let quarter_pi = T::c(std::f64::consts::FRAC_PI_4);
     let wide = lanes::gt(lanes::abs(ox), lanes::abs(oy));
-    let r = lanes::select(wide, ox, oy);
-    let theta = lanes::select(wide, quarter_pi * (oy / ox), T::c(std::f64::consts::FRAC_PI_2) - quarter_pi * (ox / oy));
-    let (sin_t, cos_t) = lanes::sin_cos(theta);
+    // The radius is the larger coordinate, the angle `φ = π/4 · smaller/larger` from its axis
+    // (|φ| ≤ π/4): θ = φ where |ox| > |oy|, else θ = π/2 − φ, whose sine and cosine are φ's
+    // swapped. One division, and sin/cos without range reduction.
+    let (r, other) = (lanes::select(wide, ox, oy), lanes::select(wide, oy, ox));
+    let (sin_phi, cos_phi) = lanes::sin_cos_quarter(T::c(std::f64::consts::FRAC_PI_4) * (other / r));
+    let (cos_t, sin_t) = (lanes::select(wide, cos_phi, sin_phi), lanes::select(wide, sin_phi, cos_phi));
     let centre = lanes::eq(ox, T::c(0.0)) & lanes::eq(oy, T::c(0.0));
     (lanes::keep(!centre, r * cos_t), lanes::keep(!centre, r * sin_t))
 }

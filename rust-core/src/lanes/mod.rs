@@ -173,6 +173,12 @@ pub trait Lanes:
     fn exp_(self) -> Self;
     /// `(sin x, cos x)` for moderate arguments (|x| ≤ 10⁴).
     fn sin_cos_(self) -> (Self, Self);
+    /// `(sin x, cos x)` for |x| ≤ π/4 (unspecified beyond): SIMD lanes skip the range
+    /// reduction of [`Lanes::sin_cos_`]; one lane takes `sin_cos_`.
+    #[inline(always)]
+    fn sin_cos_quarter_(self) -> (Self, Self) {
+        self.sin_cos_()
+    }
     /// `table[i]` per lane for lanes `idx` holding integral values; indices are clamped to
     /// the table (NaN reads entry 0). `table.len()` must be a multiple of 16 and at least 32
     /// (pad with the last entry). SIMD lanes use register permutes for tables of up to 64
@@ -458,6 +464,11 @@ pub fn exp<L: Lanes>(x: L) -> L {
 #[inline(always)]
 pub fn sin_cos<L: Lanes>(x: L) -> (L, L) {
     x.sin_cos_()
+}
+/// `(sin x, cos x)` for |x| ≤ π/4 ([`Lanes::sin_cos_quarter_`]).
+#[inline(always)]
+pub fn sin_cos_quarter<L: Lanes>(x: L) -> (L, L) {
+    x.sin_cos_quarter_()
 }
 /// `erfc(x) = 1 − erf(x)`.
 #[inline(always)]

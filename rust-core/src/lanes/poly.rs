@@ -38,6 +38,20 @@ pub(crate) fn sin_cos_f32<L: Lanes>(x: L) -> (L, L) {
     let r = q.mul_add_(L::c(-1.570_312_5), x);
     let r = q.mul_add_(L::c(-4.837_512_97e-4), r);
     let r = q.mul_add_(L::c(-7.549_789_95e-8), r);
+    let (sin_r, cos_r) = sin_cos_quarter_f32(r);
+    // Quadrant q mod 4: 0 → (s, c), 1 → (c, −s), 2 → (−s, −c), 3 → (−c, s).
+    let qm = q - (q * L::c(0.25)).floor_() * L::c(4.0);
+    let odd = L::c(0.5).lt_(qm) & qm.lt_(L::c(1.5)) | L::c(2.5).lt_(qm);
+    let (s0, c0) = (select(odd, cos_r, sin_r), select(odd, sin_r, cos_r));
+    let sin_neg = L::c(1.5).lt_(qm);
+    let cos_neg = L::c(0.5).lt_(qm) & qm.lt_(L::c(2.5));
+    (select(sin_neg, -s0, s0), select(cos_neg, -c0, c0))
+}
+
+/// `(sin r, cos r)` for f32 lanes with |r| ≤ π/4 (no range reduction): the polynomials of
+/// [`sin_cos_f32`].
+#[inline(always)]
+pub(crate) fn sin_cos_quarter_f32<L: Lanes>(r: L) -> (L, L) {
     let r2 = r * r;
     // sin r = r (1 − r²/6 + r⁴/120 − r⁶/5040 + r⁸/362880), cos r to r¹⁰.
     let mut s = L::c(2.755_731_9e-6);
@@ -51,13 +65,7 @@ pub(crate) fn sin_cos_f32<L: Lanes>(x: L) -> (L, L) {
     c = c.mul_add_(r2, L::c(4.166_666_6e-2));
     c = c.mul_add_(r2, L::c(-0.5));
     let cos_r = c.mul_add_(r2, L::c(1.0));
-    // Quadrant q mod 4: 0 → (s, c), 1 → (c, −s), 2 → (−s, −c), 3 → (−c, s).
-    let qm = q - (q * L::c(0.25)).floor_() * L::c(4.0);
-    let odd = L::c(0.5).lt_(qm) & qm.lt_(L::c(1.5)) | L::c(2.5).lt_(qm);
-    let (s0, c0) = (select(odd, cos_r, sin_r), select(odd, sin_r, cos_r));
-    let sin_neg = L::c(1.5).lt_(qm);
-    let cos_neg = L::c(0.5).lt_(qm) & qm.lt_(L::c(2.5));
-    (select(sin_neg, -s0, s0), select(cos_neg, -c0, c0))
+    (sin_r, cos_r)
 }
 
 /// `erfc(x)` for f32 lanes: `erfc(|x|) = t·e^{−x²}·e^{P(t)}`, `t = 1/(1 + |x|/2)`, with the

@@ -418,6 +418,10 @@ impl Lanes for F32x8 {
         poly::sin_cos_f32(self)
     }
     #[inline(always)]
+    fn sin_cos_quarter_(self) -> (Self, Self) {
+        poly::sin_cos_quarter_f32(self)
+    }
+    #[inline(always)]
     fn lookup_f32_(table: &[f32], idx: Self) -> Self {
         assert!((1..=MAX_LOOKUP_LEN).contains(&table.len()), "lookup tables hold 1 to 2^24 entries");
         // Exact in f32: len − 1 < 2^24.
@@ -663,6 +667,10 @@ impl Lanes for F32x16 {
         poly::sin_cos_f32(self)
     }
     #[inline(always)]
+    fn sin_cos_quarter_(self) -> (Self, Self) {
+        poly::sin_cos_quarter_f32(self)
+    }
+    #[inline(always)]
     fn lookup_f32_(table: &[f32], idx: Self) -> Self {
         assert!((1..=MAX_LOOKUP_LEN).contains(&table.len()), "lookup tables hold 1 to 2^24 entries");
         debug_assert!(
@@ -865,6 +873,7 @@ mod tests {
         fn check<L: Lanes<Elem = f32>>() {
             let mut worst_exp = 0.0f64;
             let mut worst_trig = 0.0f64;
+            let mut worst_quarter = 0.0f64;
             let w = L::WIDTH;
             for k in 0..20_000 {
                 let xs: Vec<f32> = (0..w).map(|j| -87.0 + 175.0 * ((k * w + j) as f32 / (20_000 * w) as f32)).collect();
@@ -880,7 +889,20 @@ mod tests {
                     worst_trig = worst_trig.max((f64::from(s.lane(j)) - f64::from(t).sin()).abs());
                     worst_trig = worst_trig.max((f64::from(c.lane(j)) - f64::from(t).cos()).abs());
                 }
+                // The quarter-range form (no reduction) on |x| ≤ π/4, both ends included.
+                let qs: Vec<f32> = (0..w)
+                    .map(|j| {
+                        std::f32::consts::FRAC_PI_4 * (-1.0 + 2.0 * ((k * w + j) as f32 / (20_000 * w - 1) as f32))
+                    })
+                    .collect();
+                let (s, c) = L::from_fn(|j| qs[j]).sin_cos_quarter_();
+                for (j, &t) in qs.iter().enumerate() {
+                    worst_quarter = worst_quarter.max((f64::from(s.lane(j)) - f64::from(t).sin()).abs());
+                    worst_quarter = worst_quarter.max((f64::from(c.lane(j)) - f64::from(t).cos()).abs());
+                }
             }
+            eprintln!("{} lanes: sin/cos {worst_trig:.2e}, quarter range {worst_quarter:.2e}", L::WIDTH);
+            assert!(worst_quarter <= 2.5e-7, "sin/cos on |x| ≤ π/4: {worst_quarter:e}");
             assert!(worst_exp <= 2.4e-7, "exp: {worst_exp:e}");
             assert!(worst_trig <= 2.5e-7, "sin/cos: {worst_trig:e}");
             // Edges: underflow to 0, overflow to ∞, NaN stays NaN.
