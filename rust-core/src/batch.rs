@@ -575,7 +575,7 @@ impl<E> Dst3<'_, E> {
 /// The full lane group at `start` of a dense view (`xyz` as [`Src3::dense`] reported it).
 ///
 /// # Safety
-/// `start + WIDTH ≤ n` and `xyz == s.dense() == Some(xyz)`.
+/// `start + WIDTH ≤ n` and `s.dense() == Some(xyz)`.
 #[inline(always)]
 unsafe fn load3_full<L: Lanes>(s: &Src3<L::Elem>, xyz: bool, start: usize) -> Vec3<L> {
     // SAFETY: the caller's contract: the group's values exist in the reported layout.
@@ -742,8 +742,9 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
 
 /// The full lane groups of a plain call — every element active, no scales, no lobe mask,
 /// every view dense ([`Src3::dense`]) — without the general loop's per-group layout tests
-/// and masks: the common call of a renderer. Returns where the general loop goes on
-/// (`range.0` when the call is not plain; the tail of a partial group otherwise).
+/// and masks: the common call of a renderer (the caller checks the mask, scales and lobe
+/// mask). Returns where the general loop goes on: `range.0` when a view is not dense, else
+/// the start of the tail (a partial group, or `range.1`).
 #[inline(always)]
 fn eval_pdf_full_groups<L: Lanes, K: LaneKernel>(
     model: &K,
@@ -781,12 +782,13 @@ fn eval_pdf_full_groups<L: Lanes, K: LaneKernel>(
             }
             _ => (f.map(|_| model.eval(a, o)), pdf.map(|_| model.pdf(a, o))),
         };
-        // SAFETY: as the loads.
         if let (Some(f), Some(v)) = (f, v) {
             let v = Rgb::select(ok, v, Rgb::zero());
+            // SAFETY: as the loads.
             unsafe { store3_full(f, f_xyz, start, [v.r, v.g, v.b]) };
         }
         if let (Some(pdf), Some(p)) = (pdf, p) {
+            // SAFETY: as the loads; `pdf` has stride 1 (checked above).
             unsafe { lanes::keep(ok, p).store_ptr(pdf.p.add(start)) };
         }
         start += L::WIDTH;

@@ -125,7 +125,9 @@ impl<const PIECES: usize, const POWERS: usize, const SQRT: bool> MuPolyFit<PIECE
     pub fn eval_lanes<L: Lanes>(&self, mu: L) -> Rgb<L> {
         let mu = lanes::clamp(mu, L::c(0.0), L::c(1.0));
         let x = if SQRT { lanes::sqrt(mu) } else { mu } * L::c(PIECES as f64);
-        // NaN lanes read piece 0 (the lookups send NaN to entry 0) and stay NaN through `t`.
+        // A NaN cosine: the SIMD clamp (`max`/`min`) turns it into 0, so the lane gets F(0);
+        // lanes whose clamp keeps NaN read piece 0 (the lookups send NaN to entry 0) and stay
+        // NaN through `t`. Either way in bounds; the batch calls zero invalid elements.
         let piece = lanes::min(x.floor_(), L::c((PIECES - 1) as f64));
         let t = x - piece;
         // Written out per channel, not with a closure: closures are not inlined into the
@@ -204,6 +206,20 @@ mod tests {
         let p = |x: f64| 1.0 + x * (0.5 + x * (-0.25 + x * (0.125 + x * (0.3 + x * 0.2))));
         let fit = MuFit32::new(|x| [p(x), 2.0 * p(x), 3.0 + x]).expect("a quintic fits");
         assert!(fit.max_relative_error() < 2e-7, "{}", fit.max_relative_error());
+    }
+
+    #[test]
+    fn interpolation_in_sqrt_mu_reproduces_a_degree_7_polynomial_of_sqrt_mu_exactly() {
+        // A degree-7 polynomial of √μ is degree 7 in each piece's position t: the 8-piece
+        // fit's only error is the f32 rounding of its coefficients.
+        let p = |s: f64| 0.5 + s * (0.25 + s * (-0.5 + s * (0.75 + s * (0.1 + s * (-0.2 + s * (0.3 - s * 0.05))))));
+        let fit = SqrtMuFit8::new(|mu| [p(mu.sqrt()), 1.0 + mu, 2.0 * p(mu.sqrt())]).expect("fits");
+        assert!(fit.max_relative_error() < 2e-7, "{}", fit.max_relative_error());
+        // The f64 evaluation places μ as the lanes do (piece ⌊8√μ⌋).
+        for mu in [0.0, 1e-6, 0.015625, 0.3, 0.999, 1.0] {
+            let got = fit.eval_f64(mu)[0];
+            assert!((got - p(mu.sqrt())).abs() < 2e-7 * p(mu.sqrt()), "{mu}: {got}");
+        }
     }
 
     #[test]

@@ -83,8 +83,8 @@ pub trait Lanes:
     /// Number of lanes.
     const WIDTH: usize;
     /// Whether [`Lanes::lookup_f32_`] on a 32-entry table is a register permute (AVX-512: one
-    /// `vpermt2ps`) rather than a memory gather or per-lane loads. Kernels use tabulated fits
-    /// ([`crate::poly_fit::MuPolyFit`]) in place of exact formulas only where this holds.
+    /// `vpermt2ps`) rather than a memory gather or per-lane loads. Kernels use the 32-piece
+    /// fits ([`crate::poly_fit::MuFit32`]) in place of exact formulas only where this holds.
     const REGISTER_LOOKUP: bool = false;
     /// Whether [`Lanes::lookup8_f32_`] is one register permute (AVX2: `vpermps`). Kernels use
     /// the 8-piece fits ([`crate::poly_fit::SqrtMuFit8`]) only where this holds.

@@ -158,14 +158,27 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
 
 /// Sampling: each level draws the same direction, weight and pdf as the scalar f32 sampler for
 /// the same `u` (≤ 1e-4 relative: the polynomial sin/cos differ from libm by ≤ 2e-7), and the
-/// same elements fail. Interleaved layout and a length of 1001.
+/// same elements fail. Interleaved layout and a length of 1001, no active mask (the
+/// full-group loop, then the general loop for the tail); some `u` are non-finite, and the
+/// report counts the invalid directions and `u` as the inputs say.
 #[test]
 fn sample_agrees_with_scalar() {
     let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
     let n = 1001;
     let (_, wo) = directions(n, 11);
     let mut rng = Pcg32::new(5, 5);
-    let u: Vec<f32> = (0..3 * n).map(|_| rng.uniform() as f32).collect();
+    let mut u: Vec<f32> = (0..3 * n).map(|_| rng.uniform() as f32).collect();
+    for i in (7..n).step_by(19) {
+        u[3 * i + i % 3] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][i % 3];
+    }
+    let u_ok = |i: usize| u[3 * i..3 * i + 3].iter().all(|x| x.is_finite());
+    let usable = |w: &[f32; 3]| {
+        let l2 = Vec3::new(w[0], w[1], w[2]).length_squared();
+        l2 > 0.0 && l2.is_finite()
+    };
+    let want_bad_dirs = wo.iter().filter(|w| !usable(w)).count();
+    let want_bad_u = (0..n).filter(|&i| usable(&wo[i]) && !u_ok(i)).count();
+    assert!(want_bad_dirs > 0 && want_bad_u > 0);
     let wo_flat: Vec<f32> = wo.iter().flatten().copied().collect();
     for json in MATERIALS {
         let m = Material::from_json(json).unwrap();
@@ -180,13 +193,21 @@ fn sample_agrees_with_scalar() {
                     pdf: Dst1::new(&mut pdf),
                     flags: Some(&mut flags),
                 };
-                batch::sample(&m, &Src3::interleaved(&wo_flat), &Src3::interleaved(&u), None, &mut out).unwrap();
+                let report =
+                    batch::sample(&m, &Src3::interleaved(&wo_flat), &Src3::interleaved(&u), None, &mut out).unwrap();
+                // A lane with an invalid direction counts as that alone (`BatchReport::record`).
+                assert_eq!(
+                    (report.invalid_directions, report.invalid_u),
+                    (want_bad_dirs, want_bad_u),
+                    "{json} {level:?}"
+                );
             }
             let mut compared = 0;
             for i in 0..n {
                 let o = Vec3::new(wo[i][0], wo[i][1], wo[i][2]);
-                if !(o.length_squared() > 0.0 && o.length_squared().is_finite()) {
+                if !usable(&wo[i]) || !u_ok(i) {
                     assert_eq!(flags[i], batch::SAMPLE_FAILED | batch::SAMPLE_INVALID_INPUT, "{json} {i}");
+                    assert_eq!((pdf[i], &weight[3 * i..3 * i + 3]), (0.0, &[0.0f32; 3][..]), "{json} {i}");
                     continue;
                 }
                 let want = m.sample(o, [u[3 * i], u[3 * i + 1], u[3 * i + 2]]);
