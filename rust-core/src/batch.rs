@@ -544,7 +544,7 @@ unsafe fn store1<L: Lanes>(d: &Dst1<L::Elem>, start: usize, width: usize, v: L) 
     unsafe { store_comp(d.p, d.stride, start, width, v) }
 }
 
-/// How the full-group loops read and write a view of three components with a stride:
+/// How the element loops read and write a view of three components of a plain call ([`DenseViews`]):
 /// interleaved `xyz` (`Some(true)`), unit-stride components (`Some(false)`), or neither
 /// (`None`: only the general loop).
 #[inline(always)]
@@ -657,6 +657,29 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
 
 const UP: [f64; 3] = [0.0, 0.0, 1.0];
 
+/// The layouts of a plain call's dense views, decided once per call: the element loops read
+/// and write such a call's full lane groups directly ([`load3_full`], [`store3_full`])
+/// instead of through the general per-group layout tests and masks.
+#[derive(Clone, Copy)]
+struct DenseViews {
+    /// Interleaved (`true`) or unit-stride components, per view ([`Src3::dense`]); outputs
+    /// the call does not write are `false`.
+    xyz: [bool; 4],
+}
+
+impl DenseViews {
+    /// The layouts when every view is dense (a density view of stride 1), else `None`.
+    #[inline(always)]
+    fn of<E>(inputs: [&Src3<E>; 2], outputs: [Option<&Dst3<E>>; 2], density: Option<&Dst1<E>>) -> Option<Self> {
+        if density.is_some_and(|p| p.stride != 1) {
+            return None;
+        }
+        let [a, b] = inputs;
+        let [c, d] = outputs.map(|o| o.map(Dst3::dense));
+        Some(Self { xyz: [a.dense()?, b.dense()?, c.unwrap_or(Some(false))?, d.unwrap_or(Some(false))?] })
+    }
+}
+
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
@@ -676,124 +699,100 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     let (f, pdf) = (f.as_ref(), pdf.as_ref());
     // A lobe mask of none of the lobes: zero values and densities.
     let nothing = lobes == Some(0);
+    // A plain call (every element active, no scales, no lobe mask) with dense views: its
+    // full lane groups take direct loads and stores, one test for the group's directions and
+    // no masks. The model calls below are written once for both paths (a second copy of
+    // them per kernel cost minutes of compile time, docs/reliability.md).
+    let dense = if active.is_none() && scale.is_none() && lobes.is_none() {
+        DenseViews::of([wi, wo], [f, None], pdf)
+    } else {
+        None
+    };
+    let full_end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
     let mut start = range.0;
-    if active.is_none() && scale.is_none() && lobes.is_none() {
-        start = eval_pdf_full_groups::<L, K>(model, range, wi, wo, f, pdf, &mut report);
-    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
-        let on = active_lanes::<L>(active, start, width);
-        // SAFETY: start + width ≤ n for every view (checked by the public functions).
-        let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
-        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
-        let ok = a_ok & o_ok;
+        let fast = dense.filter(|_| start < full_end);
+        let (a, o, on, ok) = match fast {
+            Some(d) => {
+                // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
+                // functions), each read in the layout `DenseViews::of` found.
+                let (a, o) = unsafe { (load3_full::<L>(wi, d.xyz[0], start), load3_full::<L>(wo, d.xyz[1], start)) };
+                let (a, o, ok) = sanitize_pair(a, o);
+                (a, o, L::Mask::splat(true), ok)
+            }
+            None => {
+                // SAFETY: start + width ≤ n for every view (checked by the public functions).
+                let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
+                let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+                (a, o, active_lanes::<L>(active, start, width), a_ok & o_ok)
+            }
+        };
         if !(ok | !on).all() {
             report.record(start, width, on & !ok, L::Mask::splat(false));
         }
         let keep = on & ok & L::Mask::splat(!nothing);
-        if let (true, Some(f), Some(pdf), None, None) = (K::SHARES_EVAL_PDF, f, pdf, scale, lobes) {
+        let (v, p) = match (f, pdf, scale, lobes) {
             // Both outputs of a model whose value and density share work: one call.
-            let (v, p) = model.eval_pdf(a, o);
-            let v = Rgb::select(keep, v, Rgb::zero());
-            // SAFETY: as below.
-            unsafe {
-                store3(f, start, width, [v.r, v.g, v.b]);
-                store1(pdf, start, width, lanes::keep(keep, p));
+            (Some(_), Some(_), None, None) if K::SHARES_EVAL_PDF => {
+                let (v, p) = model.eval_pdf(a, o);
+                (Some(v), Some(p))
             }
-            start += width;
-            continue;
-        }
-        if let Some(f) = f {
-            let one = <L::Elem as Real>::of(1.0);
-            let v = match (scale, lobes) {
-                (_, Some(0)) => Rgb::zero(),
-                (Some(sc), l) => {
-                    // SAFETY: the scales hold the elements base..base + len ⊇ start..start + width.
-                    let (m, p) = unsafe {
-                        (
-                            load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
-                            load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
-                        )
-                    };
-                    match l {
-                        None => model.eval_scaled(a, o, [m, p]),
-                        Some(l) => model.eval_lobes(a, o, [m, p], l),
+            _ => {
+                let v = f.map(|_| {
+                    let one = <L::Elem as Real>::of(1.0);
+                    match (scale, lobes) {
+                        (_, Some(0)) => Rgb::zero(),
+                        (Some(sc), l) => {
+                            // SAFETY: the scales hold the elements base..base + len ⊇
+                            // start..start + width.
+                            let (m, p) = unsafe {
+                                (
+                                    load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
+                                    load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
+                                )
+                            };
+                            match l {
+                                None => model.eval_scaled(a, o, [m, p]),
+                                Some(l) => model.eval_lobes(a, o, [m, p], l),
+                            }
+                        }
+                        (None, None) => model.eval(a, o),
+                        (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
                     }
-                }
-                (None, None) => model.eval(a, o),
-                (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
-            };
+                });
+                let p = pdf.map(|_| match lobes {
+                    None => model.pdf(a, o),
+                    Some(0) => L::c(0.0),
+                    Some(l) => model.pdf_lobes(a, o, l),
+                });
+                (v, p)
+            }
+        };
+        if let (Some(f), Some(v)) = (f, v) {
             let v = Rgb::select(keep, v, Rgb::zero());
-            unsafe { store3(f, start, width, [v.r, v.g, v.b]) };
+            let v = [v.r, v.g, v.b];
+            // SAFETY: as the loads.
+            unsafe {
+                match fast {
+                    Some(d) => store3_full(f, d.xyz[2], start, v),
+                    None => store3(f, start, width, v),
+                }
+            }
         }
-        if let Some(pdf) = pdf {
-            let v = match lobes {
-                None => model.pdf(a, o),
-                Some(0) => L::c(0.0),
-                Some(l) => model.pdf_lobes(a, o, l),
-            };
-            let v = lanes::keep(keep, v);
-            unsafe { store1(pdf, start, width, v) };
+        if let (Some(pdf), Some(p)) = (pdf, p) {
+            let p = lanes::keep(keep, p);
+            // SAFETY: as the loads; a dense call's `pdf` has stride 1.
+            unsafe {
+                match fast {
+                    Some(_) => p.store_ptr(pdf.p.add(start)),
+                    None => store1(pdf, start, width, p),
+                }
+            }
         }
         start += width;
     }
     report
-}
-
-/// The full lane groups of a plain call — every element active, no scales, no lobe mask,
-/// every view dense ([`Src3::dense`]) — without the general loop's per-group layout tests
-/// and masks: the common call of a renderer (the caller checks the mask, scales and lobe
-/// mask). Returns where the general loop goes on: `range.0` when a view is not dense, else
-/// the start of the tail (a partial group, or `range.1`).
-#[inline(always)]
-fn eval_pdf_full_groups<L: Lanes, K: LaneKernel>(
-    model: &K,
-    range: (usize, usize),
-    wi: &Src3<L::Elem>,
-    wo: &Src3<L::Elem>,
-    f: Option<&Dst3<L::Elem>>,
-    pdf: Option<&Dst1<L::Elem>>,
-    report: &mut BatchReport,
-) -> usize {
-    let (Some(wi_xyz), Some(wo_xyz)) = (wi.dense(), wo.dense()) else {
-        return range.0;
-    };
-    let f_xyz = match f.map(Dst3::dense) {
-        Some(None) => return range.0,
-        dense => dense.flatten().unwrap_or(false),
-    };
-    if pdf.is_some_and(|p| p.stride != 1) {
-        return range.0;
-    }
-    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
-    let mut start = range.0;
-    while start < end {
-        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
-        // functions), each read in the layout `dense` reported.
-        let (a, o) = unsafe { (load3_full::<L>(wi, wi_xyz, start), load3_full::<L>(wo, wo_xyz, start)) };
-        let (a, o, ok) = sanitize_pair(a, o);
-        if !ok.all() {
-            report.record(start, L::WIDTH, !ok, L::Mask::splat(false));
-        }
-        let (v, p) = match (f, pdf) {
-            (Some(_), Some(_)) if K::SHARES_EVAL_PDF => {
-                let (v, p) = model.eval_pdf(a, o);
-                (Some(v), Some(p))
-            }
-            _ => (f.map(|_| model.eval(a, o)), pdf.map(|_| model.pdf(a, o))),
-        };
-        if let (Some(f), Some(v)) = (f, v) {
-            let v = Rgb::select(ok, v, Rgb::zero());
-            // SAFETY: as the loads.
-            unsafe { store3_full(f, f_xyz, start, [v.r, v.g, v.b]) };
-        }
-        if let (Some(pdf), Some(p)) = (pdf, p) {
-            // SAFETY: as the loads; `pdf` has stride 1 (checked above).
-            unsafe { lanes::keep(ok, p).store_ptr(pdf.p.add(start)) };
-        }
-        start += L::WIDTH;
-    }
-    start
 }
 
 /// Outputs of [`sample`].
@@ -832,15 +831,34 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
     let (wo, u) = (&wo.local_copy(), &u.local_copy());
     let out =
         &SampleOut { wi: out.wi.local_copy(), weight: out.weight.local_copy(), pdf: out.pdf.local_copy(), flags: None };
+    // As in `eval_pdf_kernel`: a plain call's full groups of dense views load and store
+    // directly; the sampler call is written once for both paths.
+    let dense = if active.is_none() && lobes.is_none() {
+        DenseViews::of([wo, u], [Some(&out.wi), Some(&out.weight)], Some(&out.pdf))
+    } else {
+        None
+    };
+    let full_end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
     let mut start = range.0;
-    if active.is_none() && lobes.is_none() {
-        start = sample_full_groups::<L, K>(model, range, wo, u, out, flags, &mut report);
-    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
-        let on = active_lanes::<L>(active, start, width);
-        let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
-        let (uc, u_ok) = uniforms(unsafe { load3::<L>(u, start, width, [0.5; 3]) });
+        let fast = dense.filter(|_| start < full_end);
+        // SAFETY: start + width ≤ n for every view (checked by `sample`); a dense group is
+        // full and read in the layout `DenseViews::of` found.
+        let (o, u_raw, on) = unsafe {
+            match fast {
+                Some(d) => {
+                    (load3_full::<L>(wo, d.xyz[0], start), load3_full::<L>(u, d.xyz[1], start), L::Mask::splat(true))
+                }
+                None => (
+                    load3::<L>(wo, start, width, UP),
+                    load3::<L>(u, start, width, [0.5; 3]),
+                    active_lanes::<L>(active, start, width),
+                ),
+            }
+        };
+        let (o, o_ok) = sanitize(o);
+        let (uc, u_ok) = uniforms(u_raw);
         if !((o_ok & u_ok) | !on).all() {
             report.record(start, width, on & !o_ok, on & !u_ok);
         }
@@ -851,8 +869,23 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
                 LaneSample { valid: s.valid & L::Mask::splat(l != 0), ..s }
             }
         };
-        // SAFETY: start + width ≤ n for every output (checked by `sample`).
-        unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) };
+        match fast {
+            Some(d) => {
+                let inputs_ok = o_ok & u_ok;
+                let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, &s);
+                // SAFETY: as the loads; the flags hold n values (the caller's contract).
+                unsafe {
+                    store3_full(&out.wi, d.xyz[2], start, wi);
+                    store3_full(&out.weight, d.xyz[3], start, weight);
+                    pdf.store_ptr(out.pdf.p.add(start));
+                    if let Some(fl) = flags {
+                        store_flags(fl, start, L::WIDTH, L::Mask::splat(true), inputs_ok, good, s.delta);
+                    }
+                }
+            }
+            // SAFETY: start + width ≤ n for every output (checked by `sample`).
+            None => unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) },
+        }
         start += width;
     }
     report
@@ -865,54 +898,6 @@ fn uniforms<L: Lanes>(u: Vec3<L>) -> ([L; 3], L::Mask) {
     let (lo, hi) = (L::c(0.0), L::splat(below_one));
     let finite = lanes::is_finite(u.x) & lanes::is_finite(u.y) & lanes::is_finite(u.z);
     ([lanes::clamp(u.x, lo, hi), lanes::clamp(u.y, lo, hi), lanes::clamp(u.z, lo, hi)], finite)
-}
-
-/// As [`eval_pdf_full_groups`] for [`sample_kernel`] (every element active, no lobe mask,
-/// every view dense).
-#[inline(always)]
-fn sample_full_groups<L: Lanes, K: LaneKernel>(
-    model: &K,
-    range: (usize, usize),
-    wo: &Src3<L::Elem>,
-    u: &Src3<L::Elem>,
-    out: &SampleOut<L::Elem>,
-    flags: Option<*mut u32>,
-    report: &mut BatchReport,
-) -> usize {
-    let (Some(wo_xyz), Some(u_xyz)) = (wo.dense(), u.dense()) else {
-        return range.0;
-    };
-    let (Some(wi_xyz), Some(weight_xyz)) = (out.wi.dense(), out.weight.dense()) else {
-        return range.0;
-    };
-    if out.pdf.stride != 1 {
-        return range.0;
-    }
-    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
-    let mut start = range.0;
-    while start < end {
-        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by `sample`), each
-        // read and written in the layout `dense` reported.
-        let (o, o_ok) = sanitize(unsafe { load3_full::<L>(wo, wo_xyz, start) });
-        let (uc, u_ok) = uniforms(unsafe { load3_full::<L>(u, u_xyz, start) });
-        let inputs_ok = o_ok & u_ok;
-        if !inputs_ok.all() {
-            report.record(start, L::WIDTH, !o_ok, !u_ok);
-        }
-        let s = model.sample(o, uc);
-        let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, &s);
-        // SAFETY: as the loads; the flags hold n values (the caller's contract).
-        unsafe {
-            store3_full(&out.wi, wi_xyz, start, wi);
-            store3_full(&out.weight, weight_xyz, start, weight);
-            pdf.store_ptr(out.pdf.p.add(start));
-            if let Some(fl) = flags {
-                store_flags(fl, start, L::WIDTH, L::Mask::splat(true), inputs_ok, good, s.delta);
-            }
-        }
-        start += L::WIDTH;
-    }
-    start
 }
 
 /// A lane group of samples with zeros where the inputs or the sample are invalid: the mask
