@@ -45,7 +45,7 @@ use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
-use crate::fresnel::{conductor, conductor_rgb};
+use crate::fresnel::{conductor, ConductorFresnel};
 use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
@@ -131,8 +131,7 @@ fn build(p: &Params) -> Result<Model, Error> {
         alpha,
         distribution,
         masking,
-        eta,
-        k,
+        fresnel: ConductorFresnel::new(eta, k),
         ms,
     }))
 }
@@ -152,10 +151,8 @@ pub struct CookTorrance {
     pub distribution: DistributionKind,
     /// Masking-shadowing.
     pub masking: MaskingKind,
-    /// Real part of the IOR per channel.
-    pub eta: [f64; 3],
-    /// Extinction coefficient per channel.
-    pub k: [f64; 3],
+    /// The Fresnel of the index `η + i·k` per channel (exact, and its fits for SIMD lanes).
+    pub fresnel: ConductorFresnel,
     /// The compensation lobe, when enabled.
     pub ms: Option<Compensation>,
 }
@@ -167,14 +164,15 @@ impl CookTorrance {
     }
 
     /// The Fresnel reflectance per channel; computed once when the three channels share the
-    /// same index (a material constant, e.g. the default dielectric η = 1.5).
+    /// same index (a material constant, e.g. the default dielectric η = 1.5), else through
+    /// [`ConductorFresnel::eval`] (its fits on SIMD lanes, the exact formula elsewhere).
     #[inline(always)]
     fn fresnel<L: Lanes>(&self, cos: L) -> Rgb<L> {
-        let (eta, k) = (self.eta, self.k);
+        let (eta, k) = (self.fresnel.eta, self.fresnel.k);
         if eta[0] == eta[1] && eta[0] == eta[2] && k[0] == k[1] && k[0] == k[2] {
             Rgb::splat(conductor(cos, L::c(eta[0]), L::c(k[0])))
         } else {
-            conductor_rgb(cos, Rgb::from_array(eta), Rgb::from_array(k))
+            self.fresnel.eval(cos)
         }
     }
 

@@ -511,6 +511,88 @@ impl Layout {
     }
 }
 
+/// Inputs and outputs in different layouts (structure-of-arrays in, interleaved out, and
+/// every other pairing), and a density output with a stride of 2, give the same bits as the
+/// structure-of-arrays call without an active mask: the full-group loop takes a call only
+/// when every view is dense, and hands any other to the general loop from the start.
+#[test]
+fn mixed_layouts_give_identical_results() {
+    let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
+    let layouts = [Layout::Soa, Layout::Xyz, Layout::Xyzw];
+    for json in [MATERIALS[1], MATERIALS[12], MATERIALS[18]] {
+        let m = Material::from_json(json).unwrap();
+        for level in levels() {
+            assert!(batch::set_simd_level(level));
+            for n in [17usize, 1037] {
+                let (wi, wo) = directions(n, 3 * n as u64);
+                let mut rng = Pcg32::new(n as u64, 11);
+                let u: Vec<[f32; 3]> = (0..n).map(|_| [0, 1, 2].map(|_| rng.uniform() as f32)).collect();
+                let mut want: Option<Vec<[u32; 8]>> = None;
+                for (input, output, pdf_stride) in
+                    layouts.iter().flat_map(|&i| layouts.iter().flat_map(move |&o| [(i, o, 1usize), (i, o, 2)]))
+                {
+                    let (a, b, uu) = (input.pack(&wi), input.pack(&wo), input.pack(&u));
+                    let blank = || output.pack(&vec![[f32::NAN; 3]; n]);
+                    let (mut f, mut swi, mut sw) = (blank(), blank(), blank());
+                    let (mut pdf, mut spdf) = (vec![f32::NAN; n * pdf_stride], vec![f32::NAN; n * pdf_stride]);
+                    // SAFETY: element i of each density view is p[i·stride] < n·stride.
+                    let pdf_view = |p: &mut [f32]| unsafe { Dst1::from_raw(p.as_mut_ptr(), pdf_stride, n) };
+                    batch::eval_pdf(
+                        &m,
+                        &input.src(&a, n),
+                        &input.src(&b, n),
+                        None,
+                        Some(&output.dst(&mut f, n)),
+                        Some(&pdf_view(&mut pdf)),
+                    )
+                    .unwrap();
+                    {
+                        let mut out = SampleOut {
+                            wi: output.dst(&mut swi, n),
+                            weight: output.dst(&mut sw, n),
+                            pdf: pdf_view(&mut spdf),
+                            flags: None,
+                        };
+                        batch::sample(&m, &input.src(&b, n), &input.src(&uu, n), None, &mut out).unwrap();
+                    }
+                    let what = format!("{json} {level:?} n {n} {input:?} in, {output:?} out, pdf stride {pdf_stride}");
+                    for (name, arr) in [("f", &f), ("sample wi", &swi), ("sample weight", &sw)] {
+                        assert!(output.untouched(arr, n), "{what}: {name} wrote padding");
+                    }
+                    if pdf_stride == 2 {
+                        assert!(
+                            (0..n).all(|i| pdf[2 * i + 1].is_nan() && spdf[2 * i + 1].is_nan()),
+                            "{what}: pdf gap written"
+                        );
+                    }
+                    let per: Vec<[u32; 8]> = (0..n)
+                        .map(|i| {
+                            let (fv, w, s) = (output.get(&f, n, i), output.get(&swi, n, i), output.get(&sw, n, i));
+                            let (p, sp) = (pdf[i * pdf_stride], spdf[i * pdf_stride]);
+                            [fv[0], fv[1], fv[2], p, w[0], w[2], s[1], sp].map(f32::to_bits)
+                        })
+                        .collect();
+                    // Enough values and samples are non-zero for the comparison to say something.
+                    let values = per.iter().filter(|v| v[0] != 0).count();
+                    let samples = per.iter().filter(|v| v[7] != 0).count();
+                    assert!(
+                        values > n / 8 && samples > n / 4,
+                        "{what}: only {values} values, {samples} samples non-zero"
+                    );
+                    match &want {
+                        None => want = Some(per),
+                        Some(w) => {
+                            for i in 0..n {
+                                assert_eq!(per[i], w[i], "{what}: element {i} differs from SoA in and out");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The interleaved (contiguous loads, register permutes) and strided paths give the same
 /// bits as the structure-of-arrays one at every SIMD level, for eval, pdf and sample, with
 /// masked lanes and lengths around the lane counts (1 … 49 and 1037): each element's lane
