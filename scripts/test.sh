@@ -68,6 +68,17 @@ cargo fmt --all -- --check
 step "clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
+# The fuzz step's instrumented build (ASan, the core in one codegen unit: 20–30 minutes of one
+# core) runs in the background from here on, at a lower priority, beside every step up to the
+# fuzz step; the fuzz step waits for it and fails with its log if it failed. Started after the
+# check step (sessions 14–27), it finished 20 minutes after the last other step in session 27
+# and pushed the run over 60 minutes; from here it fills the idle moments of the test and
+# check steps too (docs/reliability.md, "CI duration: session 27 went over the limit").
+[ -f fuzz/smoke.sh ] || { echo "sub-suite fuzz/smoke.sh is missing: a missing suite fails CI" >&2; exit 1; }
+fuzz_build_log="$(mktemp "${TMPDIR:-/tmp}/lacquer-fuzz-build.XXXXXX")"
+nice -n 5 bash fuzz/smoke.sh --build-only >"$fuzz_build_log" 2>&1 &
+fuzz_build_pid=$!
+
 # Includes the c-api crate's Rust tests (so c-api/test.sh below runs with --skip-rust). Skips
 # the two tests of rust-core/tests/integration/all_models.rs that run every model and preset through the
 # checks in the quick configuration, and the models' own `passes_its_claims` /
@@ -96,14 +107,6 @@ cargo run --release -q -p lacquer-cli -- check --all --profile ci
 # Smoke runs of the speed tooling (the full runs are documented commands, not CI steps):
 # lacquer bench on a lane model and a scalar one, the speed-vs-error report and the side-by-side
 # comparison with Mitsuba 3 at n = 1e5 (docs/speed.md).
-# The fuzz step's instrumented build (ASan, the core in one codegen unit: minutes of one
-# core) runs in the background from here on, beside the mostly single-threaded steps up to the
-# fuzz step (docs/reliability.md, "CI duration, fourth pass"); the fuzz step waits for it and
-# fails with its log if it failed.
-[ -f fuzz/smoke.sh ] || { echo "sub-suite fuzz/smoke.sh is missing: a missing suite fails CI" >&2; exit 1; }
-fuzz_build_log="$(mktemp "${TMPDIR:-/tmp}/lacquer-fuzz-build.XXXXXX")"
-nice -n 5 bash fuzz/smoke.sh --build-only >"$fuzz_build_log" 2>&1 &
-fuzz_build_pid=$!
 
 step "speed tooling smoke: lacquer bench --quick, bench --report --quick, bench --max-error"
 cargo run --release -q -p lacquer-cli -- bench --quick --model rough_conductor >/dev/null

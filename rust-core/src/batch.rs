@@ -657,6 +657,16 @@ fn sanitize<L: Lanes>(w: Vec3<L>) -> (Vec3<L>, L::Mask) {
 
 const UP: [f64; 3] = [0.0, 0.0, 1.0];
 
+/// Whether the kernels of `K` at lane type `L` first run a plain call's full lane groups in
+/// a loop of their own ([`eval_pdf_full_groups`], [`sample_full_groups`]): the SIMD kernels
+/// of the small lane models ([`LaneKernel::SMALL`]). A constant item, so that the compiler
+/// drops the branch, and never instantiates that loop, where it is off.
+struct FullGroups<L, K>(core::marker::PhantomData<(L, K)>);
+
+impl<L: Lanes, K: LaneKernel> FullGroups<L, K> {
+    const ON: bool = L::WIDTH > 1 && K::SMALL;
+}
+
 /// The layouts of a plain call's dense views, decided once per call: the element loops read
 /// and write such a call's full lane groups directly ([`load3_full`], [`store3_full`])
 /// instead of through the general per-group layout tests and masks.
@@ -708,75 +718,87 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
     } else {
         None
     };
+    // The layouts and whether they apply as plain values (an `Option` of them per group
+    // costs selects in the loop).
+    let (is_dense, d) = (dense.is_some(), dense.unwrap_or(DenseViews { xyz: [false; 4] }));
     let full_end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
     let mut start = range.0;
+    if FullGroups::<L, K>::ON && is_dense {
+        start = eval_pdf_full_groups::<L, K>(model, range, wi, wo, f, pdf, &mut report);
+    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
-        let fast = dense.filter(|_| start < full_end);
-        let (a, o, on, ok) = match fast {
-            Some(d) => {
-                // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
-                // functions), each read in the layout `DenseViews::of` found.
-                let (a, o) = unsafe { (load3_full::<L>(wi, d.xyz[0], start), load3_full::<L>(wo, d.xyz[1], start)) };
-                let (a, o, ok) = sanitize_pair(a, o);
-                (a, o, L::Mask::splat(true), ok)
-            }
-            None => {
-                // SAFETY: start + width ≤ n for every view (checked by the public functions).
-                let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
-                let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
-                (a, o, active_lanes::<L>(active, start, width), a_ok & o_ok)
-            }
+        let fast = is_dense && start < full_end;
+        // The directions, the lanes that are active with usable directions, and the active
+        // lanes with unusable ones.
+        let (a, o, good, bad) = if fast {
+            // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
+            // functions), each read in the layout `DenseViews::of` found.
+            let (a, o) = unsafe { (load3_full::<L>(wi, d.xyz[0], start), load3_full::<L>(wo, d.xyz[1], start)) };
+            let (a, o, ok) = sanitize_pair(a, o);
+            (a, o, ok, !ok)
+        } else {
+            // SAFETY: start + width ≤ n for every view (checked by the public functions).
+            let (a, a_ok) = sanitize(unsafe { load3::<L>(wi, start, width, UP) });
+            let (o, o_ok) = sanitize(unsafe { load3::<L>(wo, start, width, UP) });
+            let (on, ok) = (active_lanes::<L>(active, start, width), a_ok & o_ok);
+            (a, o, on & ok, on & !ok)
         };
-        if !(ok | !on).all() {
-            report.record(start, width, on & !ok, L::Mask::splat(false));
+        if bad.any() {
+            report.record(start, width, bad, L::Mask::splat(false));
         }
-        let keep = on & ok & L::Mask::splat(!nothing);
-        let (v, p) = match (f, pdf, scale, lobes) {
+        let keep = good & L::Mask::splat(!nothing);
+        // No closures around the model calls (`Option::map`): a closure may not be inlined
+        // into the `#[target_feature]` kernel, and then runs its lanes without the ISA.
+        let (v, p) = if let (true, Some(_), Some(_), None, None) = (K::SHARES_EVAL_PDF, f, pdf, scale, lobes) {
             // Both outputs of a model whose value and density share work: one call.
-            (Some(_), Some(_), None, None) if K::SHARES_EVAL_PDF => {
-                let (v, p) = model.eval_pdf(a, o);
-                (Some(v), Some(p))
-            }
-            _ => {
-                let v = f.map(|_| {
-                    let one = <L::Elem as Real>::of(1.0);
-                    match (scale, lobes) {
-                        (_, Some(0)) => Rgb::zero(),
-                        (Some(sc), l) => {
-                            // SAFETY: the scales hold the elements base..base + len ⊇
-                            // start..start + width.
-                            let (m, p) = unsafe {
-                                (
-                                    load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
-                                    load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
-                                )
-                            };
-                            match l {
-                                None => model.eval_scaled(a, o, [m, p]),
-                                Some(l) => model.eval_lobes(a, o, [m, p], l),
-                            }
+            let (v, p) = model.eval_pdf(a, o);
+            (Some(v), Some(p))
+        } else {
+            let one = <L::Elem as Real>::of(1.0);
+            let v = if f.is_none() {
+                None
+            } else {
+                Some(match (scale, lobes) {
+                    (_, Some(0)) => Rgb::zero(),
+                    (Some(sc), l) => {
+                        // SAFETY: the scales hold the elements base..base + len ⊇
+                        // start..start + width.
+                        let (m, p) = unsafe {
+                            (
+                                load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
+                                load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
+                            )
+                        };
+                        match l {
+                            None => model.eval_scaled(a, o, [m, p]),
+                            Some(l) => model.eval_lobes(a, o, [m, p], l),
                         }
-                        (None, None) => model.eval(a, o),
-                        (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
                     }
-                });
-                let p = pdf.map(|_| match lobes {
+                    (None, None) => model.eval(a, o),
+                    (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
+                })
+            };
+            let p = if pdf.is_none() {
+                None
+            } else {
+                Some(match lobes {
                     None => model.pdf(a, o),
                     Some(0) => L::c(0.0),
                     Some(l) => model.pdf_lobes(a, o, l),
-                });
-                (v, p)
-            }
+                })
+            };
+            (v, p)
         };
         if let (Some(f), Some(v)) = (f, v) {
             let v = Rgb::select(keep, v, Rgb::zero());
             let v = [v.r, v.g, v.b];
             // SAFETY: as the loads.
             unsafe {
-                match fast {
-                    Some(d) => store3_full(f, d.xyz[2], start, v),
-                    None => store3(f, start, width, v),
+                if fast {
+                    store3_full(f, d.xyz[2], start, v);
+                } else {
+                    store3(f, start, width, v);
                 }
             }
         }
@@ -784,15 +806,77 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
             let p = lanes::keep(keep, p);
             // SAFETY: as the loads; a dense call's `pdf` has stride 1.
             unsafe {
-                match fast {
-                    Some(_) => p.store_ptr(pdf.p.add(start)),
-                    None => store1(pdf, start, width, p),
+                if fast {
+                    p.store_ptr(pdf.p.add(start));
+                } else {
+                    store1(pdf, start, width, p);
                 }
             }
         }
         start += width;
     }
     report
+}
+
+/// The full lane groups of a plain call — every element active, no scales, no lobe mask,
+/// every view dense ([`Src3::dense`]) — without the general loop's per-group layout tests
+/// and masks: the common call of a renderer (the caller checks the mask, scales and lobe
+/// mask). Returns where the general loop goes on: `range.0` when a view is not dense, else
+/// the start of the tail (a partial group, or `range.1`).
+#[inline(always)]
+fn eval_pdf_full_groups<L: Lanes, K: LaneKernel>(
+    model: &K,
+    range: (usize, usize),
+    wi: &Src3<L::Elem>,
+    wo: &Src3<L::Elem>,
+    f: Option<&Dst3<L::Elem>>,
+    pdf: Option<&Dst1<L::Elem>>,
+    report: &mut BatchReport,
+) -> usize {
+    let (Some(wi_xyz), Some(wo_xyz)) = (wi.dense(), wo.dense()) else {
+        return range.0;
+    };
+    let f_xyz = match f.map(Dst3::dense) {
+        Some(None) => return range.0,
+        dense => dense.flatten().unwrap_or(false),
+    };
+    if pdf.is_some_and(|p| p.stride != 1) {
+        return range.0;
+    }
+    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
+    let mut start = range.0;
+    while start < end {
+        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by the public
+        // functions), each read in the layout `dense` reported.
+        let (a, o) = unsafe { (load3_full::<L>(wi, wi_xyz, start), load3_full::<L>(wo, wo_xyz, start)) };
+        let (a, o, ok) = sanitize_pair(a, o);
+        if !ok.all() {
+            report.record(start, L::WIDTH, !ok, L::Mask::splat(false));
+        }
+        let (v, p) = match (f, pdf) {
+            (Some(_), Some(_)) if K::SHARES_EVAL_PDF => {
+                let (v, p) = model.eval_pdf(a, o);
+                (Some(v), Some(p))
+            }
+            // No closures around the model calls (see `eval_pdf_kernel`).
+            _ => {
+                let v = if f.is_some() { Some(model.eval(a, o)) } else { None };
+                let p = if pdf.is_some() { Some(model.pdf(a, o)) } else { None };
+                (v, p)
+            }
+        };
+        if let (Some(f), Some(v)) = (f, v) {
+            let v = Rgb::select(ok, v, Rgb::zero());
+            // SAFETY: as the loads.
+            unsafe { store3_full(f, f_xyz, start, [v.r, v.g, v.b]) };
+        }
+        if let (Some(pdf), Some(p)) = (pdf, p) {
+            // SAFETY: as the loads; `pdf` has stride 1 (checked above).
+            unsafe { lanes::keep(ok, p).store_ptr(pdf.p.add(start)) };
+        }
+        start += L::WIDTH;
+    }
+    start
 }
 
 /// Outputs of [`sample`].
@@ -838,23 +922,26 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
     } else {
         None
     };
+    let (is_dense, d) = (dense.is_some(), dense.unwrap_or(DenseViews { xyz: [false; 4] }));
     let full_end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
     let mut start = range.0;
+    if FullGroups::<L, K>::ON && is_dense {
+        start = sample_full_groups::<L, K>(model, range, wo, u, out, flags, &mut report);
+    }
     while start < range.1 {
         let width = L::WIDTH.min(range.1 - start);
-        let fast = dense.filter(|_| start < full_end);
+        let fast = is_dense && start < full_end;
         // SAFETY: start + width ≤ n for every view (checked by `sample`); a dense group is
         // full and read in the layout `DenseViews::of` found.
         let (o, u_raw, on) = unsafe {
-            match fast {
-                Some(d) => {
-                    (load3_full::<L>(wo, d.xyz[0], start), load3_full::<L>(u, d.xyz[1], start), L::Mask::splat(true))
-                }
-                None => (
+            if fast {
+                (load3_full::<L>(wo, d.xyz[0], start), load3_full::<L>(u, d.xyz[1], start), L::Mask::splat(true))
+            } else {
+                (
                     load3::<L>(wo, start, width, UP),
                     load3::<L>(u, start, width, [0.5; 3]),
                     active_lanes::<L>(active, start, width),
-                ),
+                )
             }
         };
         let (o, o_ok) = sanitize(o);
@@ -870,7 +957,7 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
             }
         };
         match fast {
-            Some(d) => {
+            true => {
                 let inputs_ok = o_ok & u_ok;
                 let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, &s);
                 // SAFETY: as the loads; the flags hold n values (the caller's contract).
@@ -884,7 +971,7 @@ fn sample_kernel<L: Lanes, K: LaneKernel>(
                 }
             }
             // SAFETY: start + width ≤ n for every output (checked by `sample`).
-            None => unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) },
+            false => unsafe { store_sample(out, flags, start, width, on, on & o_ok & u_ok, &s) },
         }
         start += width;
     }
@@ -898,6 +985,54 @@ fn uniforms<L: Lanes>(u: Vec3<L>) -> ([L; 3], L::Mask) {
     let (lo, hi) = (L::c(0.0), L::splat(below_one));
     let finite = lanes::is_finite(u.x) & lanes::is_finite(u.y) & lanes::is_finite(u.z);
     ([lanes::clamp(u.x, lo, hi), lanes::clamp(u.y, lo, hi), lanes::clamp(u.z, lo, hi)], finite)
+}
+
+/// As [`eval_pdf_full_groups`] for [`sample_kernel`] (every element active, no lobe mask,
+/// every view dense).
+#[inline(always)]
+fn sample_full_groups<L: Lanes, K: LaneKernel>(
+    model: &K,
+    range: (usize, usize),
+    wo: &Src3<L::Elem>,
+    u: &Src3<L::Elem>,
+    out: &SampleOut<L::Elem>,
+    flags: Option<*mut u32>,
+    report: &mut BatchReport,
+) -> usize {
+    let (Some(wo_xyz), Some(u_xyz)) = (wo.dense(), u.dense()) else {
+        return range.0;
+    };
+    let (Some(wi_xyz), Some(weight_xyz)) = (out.wi.dense(), out.weight.dense()) else {
+        return range.0;
+    };
+    if out.pdf.stride != 1 {
+        return range.0;
+    }
+    let end = range.0 + (range.1 - range.0) / L::WIDTH * L::WIDTH;
+    let mut start = range.0;
+    while start < end {
+        // SAFETY: start + WIDTH ≤ range.1 ≤ n for every view (checked by `sample`), each
+        // read and written in the layout `dense` reported.
+        let (o, o_ok) = sanitize(unsafe { load3_full::<L>(wo, wo_xyz, start) });
+        let (uc, u_ok) = uniforms(unsafe { load3_full::<L>(u, u_xyz, start) });
+        let inputs_ok = o_ok & u_ok;
+        if !inputs_ok.all() {
+            report.record(start, L::WIDTH, !o_ok, !u_ok);
+        }
+        let s = model.sample(o, uc);
+        let (good, wi, weight, pdf) = zero_unless_good(inputs_ok, &s);
+        // SAFETY: as the loads; the flags hold n values (the caller's contract).
+        unsafe {
+            store3_full(&out.wi, wi_xyz, start, wi);
+            store3_full(&out.weight, weight_xyz, start, weight);
+            pdf.store_ptr(out.pdf.p.add(start));
+            if let Some(fl) = flags {
+                store_flags(fl, start, L::WIDTH, L::Mask::splat(true), inputs_ok, good, s.delta);
+            }
+        }
+        start += L::WIDTH;
+    }
+    start
 }
 
 /// A lane group of samples with zeros where the inputs or the sample are invalid: the mask

@@ -120,6 +120,13 @@ pub trait LaneBxdf {
     /// True when [`LaneBxdf::eval_pdf_lanes`] shares work between the value and the density
     /// (the batch calls that want both then call it instead of the two methods).
     const SHARES_EVAL_PDF: bool = false;
+    /// True for a model whose lane code is small (tens of instructions per element): its
+    /// SIMD batch kernels run the full lane groups of a plain call in a loop of their own
+    /// (`batch::eval_pdf_full_groups`), whose saved per-group work is a measurable share of
+    /// such a model's time, for a second copy of its lane code per kernel. The large models
+    /// (paint, `principled`) keep one loop: for them the copy costs compile minutes and the
+    /// loop's work is noise (docs/reliability.md, "CI duration: session 27 went over the limit").
+    const SMALL: bool = false;
     /// [`LaneBxdf::eval_lanes`] and [`LaneBxdf::pdf_lanes`] together: the same results.
     #[inline(always)]
     fn eval_pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {

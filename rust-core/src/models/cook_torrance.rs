@@ -199,6 +199,7 @@ impl CookTorrance {
 }
 
 impl LaneBxdf for CookTorrance {
+    const SMALL: bool = true;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let mut f = Rgb::from_array(self.albedo) * (L::c(self.kd) * L::c(std::f64::consts::FRAC_1_PI));

@@ -40,6 +40,7 @@ pub struct Lambert {
 }
 
 impl LaneBxdf for Lambert {
+    const SMALL: bool = true;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, _wi: Vec3<L>, _wo: Vec3<L>) -> Rgb<L> {
         Rgb::from_array(self.albedo) * L::c(std::f64::consts::FRAC_1_PI)

@@ -496,6 +496,8 @@ pub trait LaneKernel: Sync {
     /// True when [`LaneKernel::eval_pdf`] shares work between the value and the density
     /// ([`LaneBxdf::SHARES_EVAL_PDF`]).
     const SHARES_EVAL_PDF: bool = false;
+    /// A small lane model ([`LaneBxdf::SMALL`]).
+    const SMALL: bool = false;
     /// [`LaneKernel::eval`] and [`LaneKernel::pdf`] together: the same results.
     #[inline(always)]
     fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
@@ -581,6 +583,7 @@ pub(crate) fn checked_sample<L: Lanes>(s: LaneSample<L>, above: L::Mask) -> Lane
 impl<B: LaneBxdf + Sync> LaneKernel for Native<B> {
     const NATIVE: bool = true;
     const SHARES_EVAL_PDF: bool = B::SHARES_EVAL_PDF;
+    const SMALL: bool = B::SMALL;
     #[inline(always)]
     fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
         let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));

@@ -233,6 +233,7 @@ impl RoughConductor {
 }
 
 impl LaneBxdf for RoughConductor {
+    const SMALL: bool = true;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let mut f = self.single_scattering(wi, wo);

@@ -452,6 +452,7 @@ impl RoughPlastic {
 }
 
 impl LaneBxdf for RoughPlastic {
+    const SMALL: bool = true;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z), (true, true))

@@ -497,13 +497,11 @@ impl Basecoat {
         parts: BaseParts,
         sampler: FlakeSampler,
     ) -> (Vec3<T>, T::Mask) {
-        self.sample_direction_at(wo, u, active, parts, sampler, self.blur_added(wo.z), None)
+        self.sample_direction_at(wo, u, active, parts, sampler, self.blur_added(wo.z))
     }
 
     /// [`Basecoat::sample_direction_parts_by`] with the blur at `wo` already known: `added`
-    /// must be [`Basecoat::blur_added`]`(wo.z)`. `cosine`, when given, must be
-    /// `cosine_hemisphere(u[1], u[2])` (a caller that maps it for a lobe of its own passes it
-    /// on instead of mapping it twice).
+    /// must be [`Basecoat::blur_added`]`(wo.z)`.
     #[inline(always)]
     #[must_use]
     pub(crate) fn sample_direction_at<T: Lanes>(
@@ -514,7 +512,6 @@ impl Basecoat {
         parts: BaseParts,
         sampler: FlakeSampler,
         added: Option<T>,
-        cosine: Option<Vec3<T>>,
     ) -> (Vec3<T>, T::Mask) {
         let pick = pick3(self.selection_of(parts).map(T::c), u[0]);
         // Each lobe's sampler runs only when an active lane chose it (one lane: only the
@@ -522,7 +519,7 @@ impl Basecoat {
         let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];
         let mut wi = Vec3::from_f64(0.0, 0.0, 1.0);
         if pigment.any() {
-            wi = Vec3::select(pigment, cosine.unwrap_or_else(|| cosine_hemisphere(u[1], u[2])), wi);
+            wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
             let w = match added {

@@ -780,10 +780,6 @@ impl CoatedPaint {
         // Each lobe's sampler runs only when some lane chose it (for one lane: only the
         // chosen one); lanes that did not choose it never read its result.
         let normal = Vec3::from_f64(0.0, 0.0, 1.0);
-        // The pigment lobe (in the layer) and the multiple-scattering lobe map the same
-        // `(u1, u2)` through the cosine hemisphere: on SIMD lanes, where both are usually
-        // chosen by some lane, map it once. (One lane chooses one lobe: mapped where used.)
-        let cosine = (T::WIDTH > 1 && (layer | multiple).any()).then(|| cosine_hemisphere(u[1], u[2]));
         let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
         let (w_layer, layer_ok) = if layer.any() {
             let (wi_in, base_ok) = self.base.sample_direction_at(
@@ -793,7 +789,6 @@ impl CoatedPaint {
                 parts.base(),
                 FlakeSampler::Projected,
                 o.blur,
-                cosine,
             );
             let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
             (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
@@ -801,7 +796,7 @@ impl CoatedPaint {
             (normal, T::Mask::splat(false))
         };
         let w_multiple = if multiple.any() {
-            let w = cosine.unwrap_or_else(|| cosine_hemisphere(u[1], u[2]));
+            let w = cosine_hemisphere(u[1], u[2]);
             if parts.coat && self.coat.multiple_scattering().is_some() {
                 // The cosine weight's first `ΔR(μo)` is the coat's multiple-scattering
                 // reflection: its azimuth follows the lobe's wrapped Cauchy ([`ms_sample`]).

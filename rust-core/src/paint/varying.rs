@@ -887,22 +887,14 @@ impl VaryingPaint {
         keep(lanes::gt(total, L::c(0.0)), p / total)
     }
 
-    /// The element's basecoat lobe choice and direction (as `Basecoat::sample_direction_at`,
-    /// `cosine` the same).
+    /// The element's basecoat lobe choice and direction (as `Basecoat::sample_direction_masked`).
     #[inline(always)]
-    fn base_sample<L: Lanes>(
-        &self,
-        e: &Element<L>,
-        wo: Vec3<L>,
-        u: [L; 3],
-        active: L::Mask,
-        cosine: Option<Vec3<L>>,
-    ) -> (Vec3<L>, L::Mask) {
+    fn base_sample<L: Lanes>(&self, e: &Element<L>, wo: Vec3<L>, u: [L; 3], active: L::Mask) -> (Vec3<L>, L::Mask) {
         let pick = pick3(e.base_sel, u[0]);
         let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];
         let mut wi = Vec3::from_f64(0.0, 0.0, 1.0);
         if pigment.any() {
-            wi = Vec3::select(pigment, cosine.unwrap_or_else(|| cosine_hemisphere(u[1], u[2])), wi);
+            wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
         }
         let added = self.blur_one_sided(e, wo.z);
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
@@ -1064,20 +1056,17 @@ impl VaryingPaint {
         let pick = pick3(selection, u[0]);
         let [top, layer, multiple] = pick.lobe;
         let normal = Vec3::from_f64(0.0, 0.0, 1.0);
-        // One cosine-hemisphere map for the pigment and multiple-scattering lobes (as
-        // `CoatedPaint::sample_direction_at`).
-        let cosine = (L::WIDTH > 1 && (layer | multiple).any()).then(|| cosine_hemisphere(u[1], u[2]));
         let w_top = if top.any() { self.top_sample(e, wo, u[1], u[2]) } else { normal };
         let (w_layer, layer_ok) = if layer.any() {
             let wo_in = self.coat.refract_in(wo);
-            let (wi_in, base_ok) = self.base_sample(e, wo_in, [pick.u, u[1], u[2]], layer, cosine);
+            let (wi_in, base_ok) = self.base_sample(e, wo_in, [pick.u, u[1], u[2]], layer);
             let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
             (w_layer, base_ok & lanes::gt(wi_in.z, L::c(0.0)) & escapes)
         } else {
             (normal, L::Mask::splat(false))
         };
         let w_multiple = if multiple.any() {
-            let w = cosine.unwrap_or_else(|| cosine_hemisphere(u[1], u[2]));
+            let w = cosine_hemisphere(u[1], u[2]);
             let coat_ms = multiple & lanes::lt(pick.u * selection[2], o.ms);
             if self.has_ms() && coat_ms.any() {
                 Vec3::select(coat_ms, ms_sample(wo, u[1], u[2]), w)
