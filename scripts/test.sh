@@ -68,17 +68,6 @@ cargo fmt --all -- --check
 step "clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
-# The fuzz step's instrumented build (ASan, the core in one codegen unit: 20–30 minutes of one
-# core) runs in the background from here on, at a lower priority, beside every step up to the
-# fuzz step; the fuzz step waits for it and fails with its log if it failed. Started after the
-# check step (sessions 14–27), it finished 20 minutes after the last other step in session 27
-# and pushed the run over 60 minutes; from here it fills the idle moments of the test and
-# check steps too (docs/reliability.md, "CI duration: session 27 went over the limit").
-[ -f fuzz/smoke.sh ] || { echo "sub-suite fuzz/smoke.sh is missing: a missing suite fails CI" >&2; exit 1; }
-fuzz_build_log="$(mktemp "${TMPDIR:-/tmp}/lacquer-fuzz-build.XXXXXX")"
-nice -n 5 bash fuzz/smoke.sh --build-only >"$fuzz_build_log" 2>&1 &
-fuzz_build_pid=$!
-
 # Includes the c-api crate's Rust tests (so c-api/test.sh below runs with --skip-rust). Skips
 # the two tests of rust-core/tests/integration/all_models.rs that run every model and preset through the
 # checks in the quick configuration, and the models' own `passes_its_claims` /
@@ -97,6 +86,18 @@ step "Rust tests (unit, property, chi-square, golden; every model through the ch
 cargo test --workspace --release --lib --bins --tests -- --skip every_model_passes_its_claims --skip every_preset_passes_its_claims \
   --skip tests::passes_its_claims --skip tests::passes_quick_checks
 cargo test --workspace --release --doc
+
+# The fuzz step's instrumented build (ASan, the core in one codegen unit: 20–30 minutes of one
+# core) runs in the background from here on, at a lower priority, beside every step up to the
+# fuzz step; the fuzz step waits for it and fails with its log if it failed. Not earlier: beside
+# the test step's two release compiles of the core it ran the machine out of memory (session
+# 28: rustc killed, 24 GiB). Started after the check step (sessions 14–27), it finished 20
+# minutes after the last other step in session 27 and pushed the run over 60 minutes
+# (docs/reliability.md, "CI duration: session 28").
+[ -f fuzz/smoke.sh ] || { echo "sub-suite fuzz/smoke.sh is missing: a missing suite fails CI" >&2; exit 1; }
+fuzz_build_log="$(mktemp "${TMPDIR:-/tmp}/lacquer-fuzz-build.XXXXXX")"
+nice -n 5 bash fuzz/smoke.sh --build-only >"$fuzz_build_log" 2>&1 &
+fuzz_build_pid=$!
 
 # The `ci` profile: the standard configuration, with fewer samples for the three slow
 # physical-optics models (their statistical power is stated in rust-core/src/check/mod.rs and
