@@ -821,6 +821,8 @@ macro_rules! check_each_simd_type {
         #[target_feature(enable = "avx2,fma")]
         fn avx2() {
             $check::<$crate::lanes::x86::F32x8>();
+            // The pair the small models' AVX2 kernels run on.
+            $check::<$crate::lanes::pair::X2<$crate::lanes::x86::F32x8>>();
         }
         #[target_feature(enable = "avx512f")]
         fn avx512() {
