@@ -1183,13 +1183,7 @@ impl KernelVisitor for Dispatch<'_, '_> {
         {
             #[target_feature(enable = "avx2,fma")]
             fn avx2<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
-                // The small models' kernels are latency-bound: two AVX2 groups interleaved
-                // ([`crate::lanes::pair::X2`]) overlap their dependency chains.
-                if K::SMALL {
-                    args.run::<crate::lanes::pair::X2<crate::lanes::x86::F32x8>, K>(kernel, range)
-                } else {
-                    args.run::<crate::lanes::x86::F32x8, K>(kernel, range)
-                }
+                args.run::<crate::lanes::x86::F32x8, K>(kernel, range)
             }
             #[target_feature(enable = "avx512f")]
             fn avx512<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
