@@ -667,6 +667,14 @@ impl<L: Lanes, K: LaneKernel> FullGroups<L, K> {
     const ON: bool = L::WIDTH > 1 && K::SMALL;
 }
 
+/// [`LaneKernel::PAIRED`] as constant items, for the tests in [`Args::run_paired`].
+struct PairedKernels<K>(core::marker::PhantomData<K>);
+
+impl<K: LaneKernel> PairedKernels<K> {
+    const EVAL_PDF: bool = K::PAIRED.eval_pdf;
+    const SAMPLE: bool = K::PAIRED.sample;
+}
+
 /// The layouts of a plain call's dense views, decided once per call: the element loops read
 /// and write such a call's full lane groups directly ([`load3_full`], [`store3_full`])
 /// instead of through the general per-group layout tests and masks.
@@ -1160,6 +1168,34 @@ impl Args<'_, '_> {
         }
     }
 
+    /// [`Args::run`] at lane type `L`, or at the pair `P` of `L` groups for the kernels the
+    /// model runs paired ([`LaneBxdf::PAIRED`](crate::bxdf::LaneBxdf::PAIRED)): kernels bound
+    /// by one group's dependency chain, whose two interleaved chains overlap. Constant tests,
+    /// so only the chosen lane type's kernel is compiled.
+    #[inline(always)]
+    fn run_paired<L: Lanes<Elem = f32>, P: Lanes<Elem = f32>, K: LaneKernel>(
+        self,
+        kernel: &K,
+        range: (usize, usize),
+    ) -> BatchReport {
+        match self {
+            Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes } => {
+                if PairedKernels::<K>::EVAL_PDF {
+                    eval_pdf_kernel::<P, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
+                } else {
+                    eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
+                }
+            }
+            Args::Sample { wo, u, active, out, flags, lobes } => {
+                if PairedKernels::<K>::SAMPLE {
+                    sample_kernel::<P, K>(kernel, range, wo, u, active, out, flags, lobes)
+                } else {
+                    sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags, lobes)
+                }
+            }
+        }
+    }
+
     /// Runs the kernel for `range`: the model's own kernel (one loop per model, see
     /// [`Model::visit_kernel`]) at the selected instruction set.
     fn dispatch(self, model: &Model, range: (usize, usize)) -> BatchReport {
@@ -1183,7 +1219,8 @@ impl KernelVisitor for Dispatch<'_, '_> {
         {
             #[target_feature(enable = "avx2,fma")]
             fn avx2<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
-                args.run::<crate::lanes::x86::F32x8, K>(kernel, range)
+                use crate::lanes::{pair::X2, x86::F32x8};
+                args.run_paired::<F32x8, X2<F32x8>, K>(kernel, range)
             }
             #[target_feature(enable = "avx512f")]
             fn avx512<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {

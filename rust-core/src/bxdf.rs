@@ -76,6 +76,25 @@ impl<T: Real> LaneSample<T> {
     }
 }
 
+/// Which AVX2 batch kernels of a lane model run on two interleaved lane groups
+/// ([`LaneBxdf::PAIRED`], [`crate::lanes::pair::X2`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Paired {
+    /// The value / density kernel (`eval`, `pdf`, both).
+    pub eval_pdf: bool,
+    /// The sampling kernel.
+    pub sample: bool,
+}
+
+impl Paired {
+    /// No paired kernel: one lane group at a time.
+    pub const NONE: Self = Self { eval_pdf: false, sample: false };
+    /// Only the sampling kernel.
+    pub const SAMPLE: Self = Self { eval_pdf: false, sample: true };
+    /// Every kernel.
+    pub const ALL: Self = Self { eval_pdf: true, sample: true };
+}
+
 /// A model written against [`Lanes`]: one source for the f64 reference, the scalar f32 path
 /// and the SIMD batch kernels. Its [`Bxdf`] implementation forwards to these methods with a
 /// one-lane type. Directions are unit and finite; lanes below the horizon may return anything
@@ -127,6 +146,11 @@ pub trait LaneBxdf {
     /// (paint, `principled`) keep one loop: for them the copy costs compile minutes and the
     /// loop's work is noise (docs/reliability.md, "CI duration: session 27 went over the limit").
     const SMALL: bool = false;
+    /// Which of this model's AVX2 batch kernels run two lane groups interleaved
+    /// ([`crate::lanes::pair::X2`]): worth it where a kernel is bound by one group's dependency
+    /// chain and the gain was measured; each paired kernel is a second, larger copy of the
+    /// model's lane code to compile (docs/speed.md, session 30).
+    const PAIRED: Paired = Paired::NONE;
     /// [`LaneBxdf::eval_lanes`] and [`LaneBxdf::pdf_lanes`] together: the same results.
     #[inline(always)]
     fn eval_pdf_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {

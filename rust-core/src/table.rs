@@ -108,7 +108,7 @@ impl MuTable {
         // kernels) nor an array's by-value iterator (which cost the release build 20 %).
         let mut out = [L::c(0.0); 3];
         for (o, &(a, b)) in out.iter_mut().zip(pairs.iter()) {
-            *o = a + (b - a) * t;
+            *o = lanes::mul_add(b - a, t, a);
         }
         out
     }

@@ -21,6 +21,7 @@ use std::fmt::Debug;
 use std::ops::{Add, AddAssign, BitAnd, BitOr, Div, DivAssign, Mul, MulAssign, Neg, Not, Sub, SubAssign};
 
 // The polynomials serve the SIMD types, which exist on x86-64 only for now.
+pub mod pair;
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 mod poly;
 #[cfg(target_arch = "x86_64")]
@@ -30,6 +31,8 @@ pub mod x86;
 pub trait Mask:
     Copy + Debug + Send + Sync + 'static + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self>
 {
+    /// Number of lanes.
+    const WIDTH: usize;
     /// The same value in every lane.
     fn splat(b: bool) -> Self;
     /// True when any lane is set.
@@ -41,6 +44,7 @@ pub trait Mask:
 }
 
 impl Mask for bool {
+    const WIDTH: usize = 1;
     #[inline(always)]
     fn splat(b: bool) -> Self {
         b

@@ -180,6 +180,7 @@ impl Not for M32x8 {
     }
 }
 impl Mask for M32x8 {
+    const WIDTH: usize = 8;
     #[inline(always)]
     fn splat(b: bool) -> Self {
         Self(unsafe { _mm256_castsi256_ps(_mm256_set1_epi32(if b { -1 } else { 0 })) })
@@ -220,6 +221,7 @@ impl Not for M16 {
     }
 }
 impl Mask for M16 {
+    const WIDTH: usize = 16;
     #[inline(always)]
     fn splat(b: bool) -> Self {
         Self(if b { u16::MAX } else { 0 })
@@ -819,6 +821,8 @@ macro_rules! check_each_simd_type {
         #[target_feature(enable = "avx2,fma")]
         fn avx2() {
             $check::<$crate::lanes::x86::F32x8>();
+            // The pair the small models' AVX2 kernels run on.
+            $check::<$crate::lanes::pair::X2<$crate::lanes::x86::F32x8>>();
         }
         #[target_feature(enable = "avx512f")]
         fn avx512() {

@@ -3,7 +3,7 @@
 //! Adding a model: write `models/<name>.rs` with a `pub static INFO: ModelInfo` and a type
 //! implementing [`Bxdf`], then add one line to the `models!` list below.
 
-use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, LaneBxdf, LaneSample, ModelInfo, SurfacePoint};
+use crate::bxdf::{lane_of, per_lane_rgb, BsdfSample, Bxdf, LaneBxdf, LaneSample, ModelInfo, Paired, SurfacePoint};
 use crate::frame::{above, both_above, HORIZON_COS};
 use crate::lanes::{self, Lanes};
 use crate::math::{Rgb, Vec3};
@@ -498,6 +498,8 @@ pub trait LaneKernel: Sync {
     const SHARES_EVAL_PDF: bool = false;
     /// A small lane model ([`LaneBxdf::SMALL`]).
     const SMALL: bool = false;
+    /// The AVX2 kernels that run on two interleaved lane groups ([`LaneBxdf::PAIRED`]).
+    const PAIRED: Paired = Paired::NONE;
     /// [`LaneKernel::eval`] and [`LaneKernel::pdf`] together: the same results.
     #[inline(always)]
     fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
@@ -584,6 +586,7 @@ impl<B: LaneBxdf + Sync> LaneKernel for Native<B> {
     const NATIVE: bool = true;
     const SHARES_EVAL_PDF: bool = B::SHARES_EVAL_PDF;
     const SMALL: bool = B::SMALL;
+    const PAIRED: Paired = B::PAIRED;
     #[inline(always)]
     fn eval_pdf<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, L) {
         let above = lanes::gt(wi.z, L::c(HORIZON_COS)) & lanes::gt(wo.z, L::c(HORIZON_COS));

@@ -60,7 +60,7 @@
 //! Distribution of Visible Normals", EGSR 2014; Mitsuba 3 `src/bsdfs/roughconductor.cpp` and
 //! `include/mitsuba/render/microfacet.h`; C. Kulla, A. Conty, SIGGRAPH 2017 course.
 
-use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo, Paired};
 use crate::energy_compensation::Compensation;
 use crate::error::Error;
 use crate::frame::half_vector_masked;
@@ -234,6 +234,7 @@ impl RoughConductor {
 
 impl LaneBxdf for RoughConductor {
     const SMALL: bool = true;
+    const PAIRED: Paired = Paired::SAMPLE;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let mut f = self.single_scattering(wi, wo);

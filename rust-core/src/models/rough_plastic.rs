@@ -65,7 +65,7 @@
 //! (`eval_transmittance`, `eval_reflectance`); B. Walter et al., EGSR 2007; W. Jakob,
 //! *Mitsuba documentation*, `plastic` and `roughplastic`.
 
-use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo};
+use crate::bxdf::{Claims, LaneBxdf, LaneSample, ModelInfo, Paired};
 use crate::energy_compensation::{visible_normal_integral, NormalDomain, SlopeConic};
 use crate::error::Error;
 use crate::frame::{half_vector_masked, reflect};
@@ -453,6 +453,7 @@ impl RoughPlastic {
 
 impl LaneBxdf for RoughPlastic {
     const SMALL: bool = true;
+    const PAIRED: Paired = Paired::ALL;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         self.eval_with(wi, wo, self.tables.lookup_lanes(wo.z), (true, true))
