@@ -453,12 +453,13 @@ unsafe fn load_comp<L: Lanes>(p: *const L::Elem, stride: usize, start: usize, wi
         // SAFETY: elements start..start+WIDTH exist (caller) and are contiguous.
         unsafe { L::load_ptr(p.add(start)) }
     } else {
-        let mut buf = [pad; 16];
+        assert!(L::WIDTH <= lanes::MAX_WIDTH);
+        let mut buf = [pad; lanes::MAX_WIDTH];
         for (j, b) in buf.iter_mut().enumerate().take(width) {
             // SAFETY: only lanes below `width` are read.
             *b = unsafe { *p.add((start + j) * stride) };
         }
-        // SAFETY: WIDTH ≤ 16 values in the buffer.
+        // SAFETY: WIDTH ≤ MAX_WIDTH values in the buffer.
         unsafe { L::load_ptr(buf.as_ptr()) }
     }
 }
@@ -476,11 +477,12 @@ unsafe fn load3<L: Lanes>(s: &Src3<L::Elem>, start: usize, width: usize, pad: [f
         let [x, y, z] = if width == L::WIDTH {
             unsafe { L::load_xyz_ptr(p) }
         } else {
-            let mut buf = [of(0.0); 48];
+            assert!(L::WIDTH <= lanes::MAX_WIDTH);
+            let mut buf = [of(0.0); 3 * lanes::MAX_WIDTH];
             for (j, b) in buf.iter_mut().enumerate().take(3 * L::WIDTH) {
                 *b = if j < 3 * width { unsafe { *p.add(j) } } else { of(pad[j % 3]) };
             }
-            // SAFETY: 3·WIDTH ≤ 48 values in the buffer.
+            // SAFETY: 3·WIDTH ≤ 3·MAX_WIDTH values in the buffer.
             unsafe { L::load_xyz_ptr(buf.as_ptr()) }
         };
         return Vec3::new(x, y, z);
@@ -505,8 +507,10 @@ unsafe fn store3<L: Lanes>(d: &Dst3<L::Elem>, start: usize, width: usize, v: [L;
         if width == L::WIDTH {
             unsafe { L::store_xyz_ptr(v, p) };
         } else {
-            let mut buf = [<L::Elem as Real>::of(0.0); 48];
-            // SAFETY: 3·WIDTH ≤ 48 values in the buffer; 3·width values at p are writable.
+            assert!(L::WIDTH <= lanes::MAX_WIDTH);
+            let mut buf = [<L::Elem as Real>::of(0.0); 3 * lanes::MAX_WIDTH];
+            // SAFETY: 3·WIDTH ≤ 3·MAX_WIDTH values in the buffer; 3·width values at p are
+            // writable.
             unsafe {
                 L::store_xyz_ptr(v, buf.as_mut_ptr());
                 std::ptr::copy_nonoverlapping(buf.as_ptr(), p, 3 * width);
@@ -528,8 +532,9 @@ unsafe fn store_comp<L: Lanes>(p: *mut L::Elem, stride: usize, start: usize, wid
         // SAFETY: as in load3.
         unsafe { v.store_ptr(p.add(start)) }
     } else {
-        let mut buf = [<L::Elem as Real>::of(0.0); 16];
-        // SAFETY: WIDTH ≤ 16.
+        assert!(L::WIDTH <= lanes::MAX_WIDTH);
+        let mut buf = [<L::Elem as Real>::of(0.0); lanes::MAX_WIDTH];
+        // SAFETY: WIDTH ≤ MAX_WIDTH.
         unsafe { v.store_ptr(buf.as_mut_ptr()) };
         for (j, b) in buf.iter().enumerate().take(width) {
             // SAFETY: lane j < width exists.
@@ -626,13 +631,14 @@ fn active_lanes<L: Lanes>(active: Option<&[u8]>, start: usize, width: usize) -> 
     if active.is_none() && width == L::WIDTH {
         return L::Mask::splat(true);
     }
-    let mut buf = [<L::Elem as Real>::of(0.0); 16];
+    assert!(L::WIDTH <= lanes::MAX_WIDTH);
+    let mut buf = [<L::Elem as Real>::of(0.0); lanes::MAX_WIDTH];
     for (j, b) in buf.iter_mut().enumerate().take(width) {
         if active.is_none_or(|a| a[start + j] != 0) {
             *b = <L::Elem as Real>::of(1.0);
         }
     }
-    // SAFETY: WIDTH ≤ 16 values in the buffer.
+    // SAFETY: WIDTH ≤ MAX_WIDTH values in the buffer.
     let flags = unsafe { L::load_ptr(buf.as_ptr()) };
     lanes::gt(flags, L::c(0.5))
 }
@@ -1156,16 +1162,11 @@ unsafe impl Send for Args<'_, '_> {}
 unsafe impl Sync for Args<'_, '_> {}
 
 impl Args<'_, '_> {
+    /// Runs the kernel for `range` at lane type `L` (both choices of [`Args::run_paired`] are
+    /// `L`, so one kernel per op is compiled).
     #[inline(always)]
     fn run<L: Lanes<Elem = f32>, K: LaneKernel>(self, kernel: &K, range: (usize, usize)) -> BatchReport {
-        match self {
-            Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes } => {
-                eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
-            }
-            Args::Sample { wo, u, active, out, flags, lobes } => {
-                sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags, lobes)
-            }
-        }
+        self.run_paired::<L, L, K>(kernel, range)
     }
 
     /// [`Args::run`] at lane type `L`, or at the pair `P` of `L` groups for the kernels the
@@ -1224,7 +1225,8 @@ impl KernelVisitor for Dispatch<'_, '_> {
             }
             #[target_feature(enable = "avx512f")]
             fn avx512<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
-                args.run::<crate::lanes::x86::F32x16, K>(kernel, range)
+                use crate::lanes::{pair::X2, x86::F32x16};
+                args.run_paired::<F32x16, X2<F32x16>, K>(kernel, range)
             }
             if K::NATIVE {
                 match simd_level() {

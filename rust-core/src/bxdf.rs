@@ -146,10 +146,11 @@ pub trait LaneBxdf {
     /// (paint, `principled`) keep one loop: for them the copy costs compile minutes and the
     /// loop's work is noise (docs/reliability.md, "CI duration: session 27 went over the limit").
     const SMALL: bool = false;
-    /// Which of this model's AVX2 batch kernels run two lane groups interleaved
-    /// ([`crate::lanes::pair::X2`]): worth it where a kernel is bound by one group's dependency
-    /// chain and the gain was measured; each paired kernel is a second, larger copy of the
-    /// model's lane code to compile (docs/speed.md, session 30).
+    /// Which of this model's SIMD batch kernels (AVX2 and AVX-512) run two lane groups
+    /// interleaved ([`crate::lanes::pair::X2`]): worth it where a kernel is bound by one
+    /// group's dependency chain and the gain was measured; each paired kernel is a second,
+    /// larger copy of the model's lane code to compile per instruction set (docs/speed.md,
+    /// sessions 30 and 31).
     const PAIRED: Paired = Paired::NONE;
     /// [`LaneBxdf::eval_lanes`] and [`LaneBxdf::pdf_lanes`] together: the same results.
     #[inline(always)]
@@ -198,7 +199,7 @@ pub fn per_lane_rgb<L: Lanes>(
     wo: Vec3<L>,
     f: impl Fn(Vec3<L::Elem>, Vec3<L::Elem>) -> Rgb<L::Elem>,
 ) -> Rgb<L> {
-    const MAX_WIDTH: usize = 16;
+    use crate::lanes::MAX_WIDTH;
     assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
     let mut out = [Rgb::<L::Elem>::zero(); MAX_WIDTH];
     for (i, o) in out.iter_mut().enumerate().take(L::WIDTH) {

@@ -63,6 +63,10 @@ impl Mask for bool {
     }
 }
 
+/// The widest lane type ([`pair::X2`] of 16 AVX-512 lanes): the size of the stack buffers
+/// that hold one lane group element by element (short tails, per-lane fallbacks).
+pub const MAX_WIDTH: usize = 32;
+
 /// One or more floating-point lanes with masked selection: what SIMD models are generic over.
 pub trait Lanes:
     Copy

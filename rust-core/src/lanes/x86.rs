@@ -827,6 +827,8 @@ macro_rules! check_each_simd_type {
         #[target_feature(enable = "avx512f")]
         fn avx512() {
             $check::<$crate::lanes::x86::F32x16>();
+            // The pair the small models' AVX-512 kernels run on.
+            $check::<$crate::lanes::pair::X2<$crate::lanes::x86::F32x16>>();
         }
         if $crate::batch::SimdLevel::Avx2.supported() {
             // SAFETY: the CPU has AVX2 and FMA (checked above).

@@ -438,7 +438,7 @@ impl Model {
     /// The scalar sampler on each lane.
     #[inline(never)]
     fn sample_per_lane<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3]) -> LaneSample<L> {
-        const MAX_WIDTH: usize = 16;
+        use crate::lanes::MAX_WIDTH;
         assert!(L::WIDTH <= MAX_WIDTH, "lane type wider than {MAX_WIDTH}");
         let zero = <L::Elem as num_traits::Zero>::zero();
         let mut out = [None; MAX_WIDTH];

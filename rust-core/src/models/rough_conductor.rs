@@ -234,7 +234,7 @@ impl RoughConductor {
 
 impl LaneBxdf for RoughConductor {
     const SMALL: bool = true;
-    const PAIRED: Paired = Paired::SAMPLE;
+    const PAIRED: Paired = Paired::ALL;
     #[inline(always)]
     fn eval_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>) -> Rgb<L> {
         let mut f = self.single_scattering(wi, wo);
@@ -261,12 +261,11 @@ impl LaneBxdf for RoughConductor {
             // (Heitz & d'Eon 2014), evaluated at the sampled normal m itself; the density is
             // G1(wo) D(m)/(4 cos θo), as `pdf` gives.
             let mf = self.microfacet::<L>();
-            let m = mf.sample_m(wo, u[1], u[2], true);
+            let (m, pdf) = mf.sample_visible_with_pdf(wo, u[1], u[2]);
             let wi = crate::frame::reflect(wo, m);
             let om = wo.dot(m);
             let f = self.fresnel.eval(om);
             let weight = f * Rgb::from_array(self.specular_reflectance) * mf.g1(wi, m);
-            let pdf = mf.visible_reflection_pdf(wo, m);
             let finite = lanes::is_finite(weight.r) & lanes::is_finite(weight.g) & lanes::is_finite(weight.b);
             // `wo` above the surface: the closed-form density does not vanish below it.
             let valid = lanes::gt(wo.z, L::c(0.0))
