@@ -776,7 +776,8 @@ mod tests {
     /// reciprocal root (`len² · (1/√len²)`, two roundings against one in f64).
     #[test]
     fn sample_with_pdf_matches_the_separate_calls() {
-        // Measured: largest relative difference of the densities 2.2e-16 (f64 rounding).
+        // The density's relative difference is rounding only: 6.7e-16 at most over 4·10⁵
+        // directions for the two GGX cases, replaying the same f64 operations in numpy.
         const TOL: f64 = 1e-13;
         let mut rng = Pcg32::new(11, 4);
         for mf in [
