@@ -12,7 +12,7 @@
 # `--build-only` installs what is missing and builds the instrumented targets, then stops:
 # scripts/test.sh runs it in the background beside the single-threaded steps before this one
 # (the ASan build of the core is one codegen unit, so it keeps one core busy for minutes), and
-# the later full run finds the build done.
+# the later full run finds the build done. The build is at opt-level 1 (below).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cd "$here"
@@ -39,8 +39,25 @@ if ! cargo fuzz --version >/dev/null 2>&1; then
 fi
 cargo fuzz --version
 
-# A target directory of its own (instrumented builds never mix with the workspace's).
-export CARGO_TARGET_DIR="${LACQUER_FUZZ_TARGET_DIR:-$here/target}"
+# A target directory of its own (instrumented builds never mix with the workspace's, nor with
+# the full-speed builds of long runs, docs/reliability.md: their RUSTFLAGS differ).
+export CARGO_TARGET_DIR="${LACQUER_FUZZ_TARGET_DIR:-$here/target/smoke}"
+# The smoke build at opt-level 1 (LACQUER_FUZZ_OPT_LEVEL; cargo-fuzz puts RUSTFLAGS after its
+# own flags and the profile's opt-level 3, so this one wins; a caller's RUSTFLAGS still come
+# last). cargo-fuzz builds the core in one codegen unit under ASan and coverage instrumentation:
+# at opt-level 3 that kept one core busy for 20-26 minutes, the longest pole of CI; at
+# opt-level 1 the whole build took 9 min 26 s on an idle Intel host, and the smoke run's
+# executions are as many (capi_calls 265 / material_json 1136 / render_scene 1900 / merl_table 76
+# in 42 / 34 / 49 / 11 s, against 264 / 1136 / 1860 / 67 in 38 / 31 / 47 / 11 s at opt-level 3):
+# the replay of the committed corpora is ASan's and the allocator's time, not the kernels'
+# (docs/reliability.md, "CI duration: session 32"). Long runs (docs/reliability.md) build
+# at the profile's opt-level 3 in fuzz/target.
+opt_level="${LACQUER_FUZZ_OPT_LEVEL:-1}"
+case "$opt_level" in
+  0|1|2|3|s|z) ;;
+  *) echo "fuzz/smoke.sh: LACQUER_FUZZ_OPT_LEVEL must be 0-3, s or z, got '$opt_level'" >&2; exit 2 ;;
+esac
+export RUSTFLAGS="-Copt-level=$opt_level${RUSTFLAGS:+ $RUSTFLAGS}"
 # One known false leak report (a rayon worker's thread-local teardown racing the leak check):
 # suppressed by its innermost glibc frame only, see fuzz/lsan.supp.
 export LSAN_OPTIONS="suppressions=$here/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
