@@ -45,13 +45,11 @@ export CARGO_TARGET_DIR="${LACQUER_FUZZ_TARGET_DIR:-$here/target/smoke}"
 # The smoke build at opt-level 1 (LACQUER_FUZZ_OPT_LEVEL; cargo-fuzz puts RUSTFLAGS after its
 # own flags and the profile's opt-level 3, so this one wins; a caller's RUSTFLAGS still come
 # last). cargo-fuzz builds the core in one codegen unit under ASan and coverage instrumentation:
-# at opt-level 3 that kept one core busy for 20-26 minutes, the longest pole of CI; at
-# opt-level 1 the whole build took 9 min 26 s on an idle Intel host, and the smoke run's
-# executions are as many (capi_calls 265 / material_json 1136 / render_scene 1900 / merl_table 76
-# in 42 / 34 / 49 / 11 s, against 264 / 1136 / 1860 / 67 in 38 / 31 / 47 / 11 s at opt-level 3):
-# the replay of the committed corpora is ASan's and the allocator's time, not the kernels'
-# (docs/reliability.md, "CI duration: session 32"). Long runs (docs/reliability.md) build
-# at the profile's opt-level 3 in fuzz/target.
+# built side by side from one fresh clone, opt-level 1 took 19 min 12 s and opt-level 3 24 min
+# 12 s (its last 5 minutes alone), and the smoke run's executions hardly change (the replay of
+# the committed corpora is ASan's and the allocator's time, not the kernels'; docs/reliability.md,
+# "CI duration: session 32"). Long runs (docs/reliability.md) build at the profile's opt-level 3
+# in fuzz/target.
 opt_level="${LACQUER_FUZZ_OPT_LEVEL:-1}"
 case "$opt_level" in
   0|1|2|3|s|z) ;;

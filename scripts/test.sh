@@ -87,8 +87,9 @@ cargo test --workspace --release --lib --bins --tests -- --skip every_model_pass
   --skip tests::passes_its_claims --skip tests::passes_quick_checks
 cargo test --workspace --release --doc
 
-# The fuzz step's instrumented build (ASan, the core in one codegen unit, at opt-level 1: about
-# 10 minutes of one core; 20–30 at opt-level 3 until session 32) runs in the background from here on, at a lower priority, beside every step up to the
+# The fuzz step's instrumented build (ASan, the core in one codegen unit, at opt-level 1 since
+# session 32: at least a fifth faster than opt-level 3; 20–25 minutes beside the other steps)
+# runs in the background from here on, at a lower priority, beside every step up to the
 # fuzz step; the fuzz step waits for it and fails with its log if it failed. Not earlier: beside
 # the test step's two release compiles of the core it ran the machine out of memory (session
 # 28: rustc killed, 24 GiB). Started after the check step (sessions 14–27), it finished 20
