@@ -268,6 +268,24 @@ pub fn metal(name: &str) -> Option<&'static Metal> {
     METALS.iter().find(|m| m.name == name)
 }
 
+/// The textbook dielectric Fresnel reflectance (Snell, then `r_s`, `r_p` with a division
+/// each), in f64: the independent reference the tests of [`dielectric`] and of the models
+/// built on it compare with. `cos_i < 0` is the other side (index `1/η`); 1 under total
+/// internal reflection.
+#[cfg(test)]
+pub(crate) fn dielectric_textbook(cos_i: f64, eta: f64) -> f64 {
+    let eta = if cos_i < 0.0 { 1.0 / eta } else { eta };
+    let c = cos_i.abs().min(1.0);
+    let sin2_t = (1.0 - c * c) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let ct = (1.0 - sin2_t).sqrt();
+    let rs = (c - eta * ct) / (c + eta * ct);
+    let rp = (eta * c - ct) / (eta * c + ct);
+    0.5 * (rs * rs + rp * rp)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -296,20 +314,6 @@ mod tests {
         let ct = (1.0 - (si / eta).powi(2)).sqrt();
         let rs = (ci - eta * ct) / (ci + eta * ct);
         assert!((dielectric(ci, eta) - 0.5 * rs * rs).abs() < 1e-14);
-    }
-
-    /// The textbook form (Snell, then `r_s`, `r_p` with a division each), in f64.
-    fn dielectric_textbook(cos_i: f64, eta: f64) -> f64 {
-        let eta = if cos_i < 0.0 { 1.0 / eta } else { eta };
-        let c = cos_i.abs().min(1.0);
-        let sin2_t = (1.0 - c * c) / (eta * eta);
-        if sin2_t >= 1.0 {
-            return 1.0;
-        }
-        let ct = (1.0 - sin2_t).sqrt();
-        let rs = (c - eta * ct) / (c + eta * ct);
-        let rp = (eta * c - ct) / (eta * c + ct);
-        0.5 * (rs * rs + rp * rp)
     }
 
     /// `dielectric` divides once per lane (reciprocals of `η` and `η²`, and `1/(b d)` shared

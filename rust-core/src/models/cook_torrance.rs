@@ -237,20 +237,12 @@ mod tests {
     use super::*;
     use crate::check::{check_model, furnace::albedo, CheckConfig};
     use crate::frame::spherical_direction;
+    use crate::fresnel::dielectric_textbook;
     use crate::material::Material;
     use crate::rng::Pcg32;
 
     fn mat(json: &str) -> Material {
         Material::from_json(json).unwrap()
-    }
-
-    /// Fresnel of a dielectric from the textbook s/p amplitudes (independent of fresnel.rs).
-    fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
-        let sin_t = (1.0 - cos_i * cos_i).sqrt() / eta;
-        let cos_t = (1.0 - sin_t * sin_t).sqrt();
-        let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-        let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-        0.5 * (rs * rs + rp * rp)
     }
 
     /// Roughness → 0: the specular lobe becomes a mirror whose albedo is the Fresnel
@@ -264,7 +256,7 @@ mod tests {
             for &c in &[1.0, 0.6, 0.3] {
                 let wo = spherical_direction((1.0f64 - c * c).sqrt(), c, 0.4);
                 let (a, _) = albedo(&m, wo, 20_000, &mut Pcg32::new(3, 3));
-                let want = fresnel_dielectric(c, 1.5);
+                let want = dielectric_textbook(c, 1.5);
                 assert!((a[0] - want).abs() < 0.02 * want, "{dist} {c}: {} vs {want}", a[0]);
             }
         }
