@@ -3,7 +3,7 @@
 //! Both directions point away from the surface. These helpers are the only place where
 //! spherical coordinates are derived from a direction.
 
-use crate::lanes::{self, Lanes};
+use crate::lanes::{self, Lanes, Mask};
 use crate::math::Vec3;
 use crate::real::Real;
 
@@ -165,6 +165,15 @@ impl<T: Lanes> HalfPair<T> {
     pub fn new(wi: Vec3<T>, wo: Vec3<T>) -> Self {
         let (h, defined) = half_vector_masked(wi, wo);
         Self { wi, wo, h, defined }
+    }
+
+    /// `wi` and `wo` without their half vector, for lobes that read only the two directions
+    /// (a diffuse lobe): `h` is the normal and `defined` false in every lane, so a lobe that
+    /// reads it anyway gets nothing rather than a wrong value.
+    #[inline(always)]
+    #[must_use]
+    pub fn without_half(wi: Vec3<T>, wo: Vec3<T>) -> Self {
+        Self { wi, wo, h: Vec3::from_f64(0.0, 0.0, 1.0), defined: T::Mask::splat(false) }
     }
 }
 

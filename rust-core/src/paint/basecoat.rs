@@ -272,11 +272,12 @@ impl Basecoat {
     }
 
     /// The transmission blur's added `α²` for an inside direction with cosine `mu_in`
-    /// ([`TransmissionBlur::one_sided`]; None without the blur).
+    /// ([`TransmissionBlur::one_sided`]; None without the blur, or without a glossy lobe for
+    /// it to widen: a pigment-only basecoat does not pay for it).
     #[inline(always)]
     #[must_use]
     pub fn blur_added<T: Lanes>(&self, mu_in: T) -> Option<T> {
-        self.blur.map(|b| b.one_sided(mu_in))
+        self.blur.filter(|_| self.has_glossy()).map(|b| b.one_sided(mu_in))
     }
 
     /// What the value and the density share at `wi`, `wo` ([`BasePair`]).
@@ -291,6 +292,10 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub(crate) fn pair_at<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, added_o: Option<T>) -> BasePair<T> {
+        if !self.has_glossy() {
+            // The pigment alone reads the two directions, not their half vector nor the blur.
+            return BasePair { half: HalfPair::without_half(wi, wo), added: None, flake_d: T::c(0.0) };
+        }
         let half = HalfPair::new(wi, wo);
         let added = match (&self.blur, added_o) {
             (Some(b), Some(o)) => Some((b.one_sided(wi.z), o)),

@@ -37,7 +37,7 @@
 
 use crate::frame::HalfPair;
 use crate::fresnel;
-use crate::lanes::{self, keep, Lanes};
+use crate::lanes::{self, keep, Lanes, Mask};
 use crate::math::Vec3;
 use crate::microfacet::{DistributionKind, MaskingKind, Microfacet};
 use crate::real::Real;
@@ -242,13 +242,15 @@ pub fn ms_azimuthal<L: Lanes>(wi: Vec3<L>, wo: Vec3<L>) -> L {
     // Near the normal (s ≤ 1e-12, so ρ ≤ 1e-6) the quotient's terms shrink like s^1.5 (0/0 at
     // s = 0) while the direct form has nothing to cancel: `(1 − ρ²)/(1 + ρ² + 2 r h/√s)`.
     let away = lanes::gt(s, L::c(1e-12));
+    let numerator_away = u * (one + rho) * q_big * v_root_s;
+    let denominator_away = u * u * v_root_s + L::c(2.0 * r) * q * q_big * q_big;
+    if away.all() {
+        // No lane near the normal (the common case): the direct form is not needed.
+        return lanes::div_fast(numerator_away, denominator_away);
+    }
     let inv_root_s = lanes::rsqrt_fast(lanes::max(s, L::c(f64::from(f32::MIN_POSITIVE))));
-    let numerator = lanes::select(away, u * (one + rho) * q_big * v_root_s, one - rho * rho);
-    let denominator = lanes::select(
-        away,
-        u * u * v_root_s + L::c(2.0 * r) * q * q_big * q_big,
-        one + rho * rho + L::c(2.0 * r) * h * inv_root_s,
-    );
+    let numerator = lanes::select(away, numerator_away, one - rho * rho);
+    let denominator = lanes::select(away, denominator_away, one + rho * rho + L::c(2.0 * r) * h * inv_root_s);
     lanes::div_fast(numerator, denominator)
 }
 
