@@ -41,6 +41,30 @@ pub fn dielectric<T: Lanes>(cos_i: T, eta: T) -> T {
     lanes::select(tir, one, T::c(0.5) * (r_s * r_s + r_p * r_p))
 }
 
+/// `1 − F` of [`dielectric`] (the transmitted share) without the cancellation of `1 − F`
+/// at grazing incidence, where `F → 1`: `1 − r_s² = 4ηc c_t/b²` and `1 − r_p² = 4ηc c_t/d²`
+/// (`b = c + η c_t`, `d = ηc + c_t`), so `T = 2ηc c_t (b² + d²)/(b d)²`, sums and products of
+/// positive terms. In f32 `1 − F` has the relative error `ulp(1)/T` (2.4e-4 at cos θ = 1e-4);
+/// this form keeps a few ulps relative at every angle. 0 under total internal reflection;
+/// `cos_i` and `eta` as in [`dielectric`].
+#[inline(always)]
+#[must_use]
+pub fn dielectric_transmittance<T: Lanes>(cos_i: T, eta: T) -> T {
+    let one = T::c(1.0);
+    let inside = lanes::lt(cos_i, T::c(0.0));
+    let eta2 = eta * eta;
+    let (inv_eta, inv_eta2) = (one / eta, one / eta2);
+    let eta = lanes::select(inside, inv_eta, eta);
+    let cos_i = lanes::min(lanes::abs(cos_i), one);
+    let sin2_t = (one - cos_i * cos_i) * lanes::select(inside, eta2, inv_eta2);
+    let tir = lanes::ge(sin2_t, one);
+    let cos_t = lanes::safe_sqrt(one - sin2_t);
+    let (b, d) = (cos_i + eta * cos_t, eta * cos_i + cos_t);
+    let inv_bd = one / (b * d);
+    let t = T::c(2.0) * eta * cos_i * cos_t * (b * b + d * d) * (inv_bd * inv_bd);
+    lanes::select(tir, T::c(0.0), t)
+}
+
 /// Cosine of the refracted direction for a dielectric (positive), or `None` under total
 /// internal reflection. `eta` as in [`dielectric`].
 #[inline]
@@ -344,6 +368,61 @@ mod tests {
         println!("dielectric vs textbook: f64 {worst64:.2e}, f32 {worst32:.2e} (relative to max(F, 0.01))");
         assert!(worst64 < 1e-13, "f64 {worst64:e}");
         assert!(worst32 < 1e-5, "f32 {worst32:e}");
+    }
+
+    /// Hecht's transmitted power `T = ½ (η c_t/c)(t_s² + t_p²)` from the amplitude
+    /// transmission coefficients `t_s = 2c/(c + η c_t)`, `t_p = 2c/(ηc + c_t)` (f64, no
+    /// cancellation): the independent reference for [`dielectric_transmittance`].
+    fn transmittance_hecht(cos_i: f64, eta: f64) -> f64 {
+        let eta = if cos_i < 0.0 { 1.0 / eta } else { eta };
+        let c = cos_i.abs().min(1.0);
+        let sin2_t = (1.0 - c * c) / (eta * eta);
+        if sin2_t >= 1.0 || c == 0.0 {
+            return 0.0;
+        }
+        let ct = (1.0 - sin2_t).sqrt();
+        let (ts, tp) = (2.0 * c / (c + eta * ct), 2.0 * c / (eta * c + ct));
+        0.5 * (eta * ct / c) * (ts * ts + tp * tp)
+    }
+
+    /// `dielectric_transmittance` is `1 − F` without the cancellation at grazing incidence:
+    /// against Hecht's form for cos θ from 1e-7 to 1, both sides, four indices (away from the
+    /// critical angle, as above): f64 within 1e-13 relative (measured 8.6e-16), f32 within 2e-6
+    /// relative of the f64 reference at the rounded inputs (measured 4.3e-7), where `1 − F` in
+    /// f32 is 2.4e-4 off at cos θ = 1e-4 (asserted > 1e-4: the old form fails the bound), and
+    /// `F + T = 1` in f64 within 1e-15.
+    #[test]
+    fn dielectric_transmittance_keeps_its_precision_at_grazing_incidence() {
+        let (mut worst64, mut worst32, mut worst_sum) = (0.0f64, 0.0f64, 0.0f64);
+        for &eta in &[1.0001, 1.33, 1.5, 2.5] {
+            for side in [1.0, -1.0] {
+                for k in 0..=700 {
+                    let c = side * 10f64.powf(-7.0 + 7.0 * f64::from(k) / 700.0);
+                    let e = if c < 0.0 { 1.0 / eta } else { eta };
+                    if (1.0 - c * c) / (e * e) > 0.99 {
+                        continue;
+                    }
+                    let want = transmittance_hecht(c, eta);
+                    worst64 = worst64.max((dielectric_transmittance(c, eta) - want).abs() / want);
+                    worst_sum = worst_sum.max((dielectric_transmittance(c, eta) + dielectric(c, eta) - 1.0).abs());
+                    let (c32, eta32) = (c as f32, eta as f32);
+                    let want32 = transmittance_hecht(f64::from(c32), f64::from(eta32));
+                    worst32 = worst32.max((f64::from(dielectric_transmittance(c32, eta32)) - want32).abs() / want32);
+                }
+            }
+        }
+        let c = 1e-4f32;
+        let want = transmittance_hecht(f64::from(c), f64::from(1.5f32));
+        let one_minus_f = (f64::from(1.0 - dielectric(c, 1.5f32)) - want).abs() / want;
+        println!(
+            "dielectric_transmittance vs Hecht: f64 {worst64:.2e}, f32 {worst32:.2e}; F + T - 1 {worst_sum:.1e}; 1 - F in f32 at cos 1e-4: {one_minus_f:.2e}"
+        );
+        assert!(worst64 < 1e-13, "f64 {worst64:e}");
+        assert!(worst32 < 2e-6, "f32 {worst32:e}");
+        assert!(worst_sum < 1e-15, "F + T - 1: {worst_sum:e}");
+        assert!(one_minus_f > 1e-4, "1 - F in f32 at cos 1e-4: {one_minus_f:e}");
+        assert_eq!(dielectric_transmittance(-0.1f64, 1.5), 0.0, "total internal reflection");
+        assert_eq!(dielectric_transmittance(0.0f64, 1.5), 0.0);
     }
 
     #[test]

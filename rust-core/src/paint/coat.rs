@@ -146,6 +146,9 @@ pub struct Coat {
 pub struct CoatAt<T> {
     /// Energy the top surface reflects: [`Coat::reflectance`].
     pub reflectance: T,
+    /// Energy that enters the coat: [`Coat::transmittance`] (a smooth coat's without the
+    /// cancellation of `1 − F` at grazing incidence, [`fresnel::dielectric_transmittance`]).
+    pub entering: T,
     /// The multiple-scattering reflection `ΔR(μ)`: [`Coat::ms_albedo`] (0 for a smooth coat).
     pub ms: T,
     /// The crossing factor `g(μ)`: [`Coat::crossing`].
@@ -153,11 +156,12 @@ pub struct CoatAt<T> {
 }
 
 impl<T: Lanes> CoatAt<T> {
-    /// Energy that enters the coat: [`Coat::transmittance`], `max(1 − reflectance − ΔR, 0)`.
+    /// Energy that enters the coat: [`Coat::transmittance`] (`max(1 − reflectance − ΔR, 0)`
+    /// for a rough coat).
     #[inline(always)]
     #[must_use]
     pub fn transmittance(&self) -> T {
-        lanes::max(T::c(1.0) - self.reflectance - self.ms, T::c(0.0))
+        self.entering
     }
 }
 
@@ -360,11 +364,12 @@ impl Coat {
         match &self.factors {
             Some(t) => {
                 let [reflectance, ms, crossing] = t.eval_lanes(mu);
-                CoatAt { reflectance, ms, crossing }
+                let entering = lanes::max(T::c(1.0) - reflectance - ms, T::c(0.0));
+                CoatAt { reflectance, entering, ms, crossing }
             }
             None => {
-                let reflectance = self.reflectance(mu);
-                CoatAt { reflectance, ms: T::c(0.0), crossing: lanes::max(T::c(1.0) - reflectance, T::c(0.0)) }
+                let entering = self.transmittance(mu);
+                CoatAt { reflectance: self.reflectance(mu), entering, ms: T::c(0.0), crossing: entering }
             }
         }
     }
@@ -470,6 +475,14 @@ impl Coat {
     #[inline(always)]
     #[must_use]
     pub fn transmittance<T: Lanes>(&self, mu: T) -> T {
+        if self.albedo.is_none() {
+            // A smooth interface: `1 − F` without its cancellation at grazing incidence.
+            return if self.has_interface() {
+                fresnel::dielectric_transmittance(mu, T::c(self.ior))
+            } else {
+                T::c(1.0)
+            };
+        }
         if self.ms.is_none() {
             return lanes::max(T::c(1.0) - self.reflectance(mu), T::c(0.0));
         }

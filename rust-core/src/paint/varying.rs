@@ -990,7 +990,8 @@ impl VaryingPaint {
         let top = self.top_eval(e, wi, wo);
         let (a, b) = (self.multiple(e, &mu_at(wi.z, NODES)), o.multiple);
         let m = Rgb::new(a[0] * b[0] * e.norm[0], a[1] * b[1] * e.norm[1], a[2] * b[2] * e.norm[2]);
-        let (ti, to) = (self.transmittance(e, wi.z), self.transmittance_of(o.reflectance, o.ms));
+        // Both from `transmittance` (a smooth coat's is not `1 − reflectance`): symmetric.
+        let (ti, to) = (self.transmittance(e, wi.z), self.transmittance(e, wo.z));
         Rgb::splat(top) + self.layer_term(e, wi, wo, ti, to) + m
     }
 
