@@ -22,7 +22,12 @@
 //!
 //! The per-cell log (stderr) also gives both albedos of the light that crossed the coat, so
 //! an albedo error splits into the top reflection's and the body's, and the reference's light
-//! that crossed the coat by the number of basecoat bounces before it left (1, 2, 3, 4+).
+//! that crossed the coat by the number of basecoat bounces before it left (1, 2, 3, 4+); the
+//! model's tabulated albedos of its single-scatter layer term `A1`, the metal's bounce series
+//! `S` (before the later bounces' absorption `F0^n`) and the multiple-scatter lobe `M`; and the
+//! light after two or more base bounces (reference) against `S + M` (model): both albedos and
+//! the lobe-shape error between them, so the first-bounce and the later-bounce light can be
+//! judged apart.
 
 use lacquer::frame::spherical_direction;
 use lacquer::paint::coated_paint::CoatedPaint;
@@ -56,6 +61,10 @@ type Curve = Vec<(f64, f64)>;
 struct Lobe {
     all: LobeHistogram,
     body: LobeHistogram,
+    /// The light that left after two or more basecoat bounces: the reference's walks with
+    /// `base_bounces ≥ 2`; the model's bounce series `S` plus its multiple-scatter lobe `M`
+    /// (the terms that stand for those orders).
+    later: LobeHistogram,
     /// The reference's light that crossed the coat by the number of basecoat bounces before
     /// it left (1, 2, 3, 4 or more; luminance albedo): which orders an albedo error sits in.
     by_bounces: [f64; 4],
@@ -75,6 +84,7 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
         (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0x7c0a7);
     let mut by_bounces = [0.0; 4];
+    let (mut l, mut l2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     for _ in 0..walks {
         let Some(exit) = mc.albedo_walk_exit(wo, &mut rng) else { continue };
         let k = lobe_bin(exit.direction, 0.0, N_MU, N_PHI);
@@ -82,11 +92,15 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
         if exit.entered {
             accumulate(&mut b, &mut b2, k, exit.weight);
             by_bounces[(exit.base_bounces.max(1) as usize - 1).min(3)] += exit.weight.luminance() / walks as f64;
+            if exit.base_bounces >= 2 {
+                accumulate(&mut l, &mut l2, k, exit.weight);
+            }
         }
     }
     Lobe {
         all: LobeHistogram::from_sums(&s, &s2, walks, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, walks, N_MU, N_PHI),
+        later: LobeHistogram::from_sums(&l, &l2, walks, N_MU, N_PHI),
         by_bounces,
     }
 }
@@ -96,6 +110,7 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
     let (mut s, mut s2, mut b, mut b2) =
         (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0xa7a1);
+    let (mut l, mut l2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     for _ in 0..samples {
         let Some(smp) = paint.sample(wo, rng.uniform3()) else { continue };
         if smp.wi.z <= 0.0 || smp.delta {
@@ -106,10 +121,13 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
         let [_, layer, multiple] = paint.eval_terms(smp.wi, wo);
         let body = (layer + multiple) * (smp.wi.z / smp.pdf);
         accumulate(&mut b, &mut b2, k, body);
+        let later = (paint.eval_series_term(smp.wi, wo) + multiple) * (smp.wi.z / smp.pdf);
+        accumulate(&mut l, &mut l2, k, later);
     }
     Lobe {
         all: LobeHistogram::from_sums(&s, &s2, samples, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, samples, N_MU, N_PHI),
+        later: LobeHistogram::from_sums(&l, &l2, samples, N_MU, N_PHI),
         by_bounces: [0.0; 4],
     }
 }
@@ -164,6 +182,23 @@ fn main() {
                 let (r, a) = (reference(paint, wo, walks, seed), analytic(paint, wo, walks, seed));
                 let all = compare(&a.all, &r.all);
                 let b = compare(&a.body, &r.body);
+                let lt = compare(&a.later, &r.later);
+                eprintln!(
+                    "{base_name} α {alpha} θo {theta}: later light {:.4} vs {:.4}, lobe {:.2} % (noise {:.2})",
+                    lt[0],
+                    lt[1],
+                    100.0 * lt[4],
+                    100.0 * lt[5]
+                );
+                // The model's terms' albedos at θo (its tables): single-scatter layer `A1`,
+                // the metal's bounce series `S`, the multiple-scatter lobe `M` (luminance).
+                let (a1, m) = paint.layer_albedos(wo.z);
+                let terms =
+                    [Rgb::from_array(a1).luminance(), paint.spec_series_albedo(wo.z), Rgb::from_array(m).luminance()];
+                eprintln!(
+                    "{base_name} α {alpha} θo {theta}: the model's A1 / S / M {:.4} / {:.4} / {:.4}",
+                    terms[0], terms[1], terms[2]
+                );
                 eprintln!(
                     "{base_name} α {alpha} θo {theta}: albedo {:.4} vs {:.4} ({:+.2} % ± {:.2}; of it through the coat {:.4} vs {:.4}; the reference's after 1 / 2 / 3 / 4+ base bounces {:.4} / {:.4} / {:.4} / {:.4}), lobe {:.2} % (noise {:.2}), body lobe {:.2} % (noise {:.2}) [{:.0} s]",
                     all[0], all[1], 100.0 * all[2], 100.0 * all[3], b[0], b[1],
