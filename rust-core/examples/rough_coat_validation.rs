@@ -183,6 +183,21 @@ fn main() {
                 let all = compare(&a.all, &r.all);
                 let b = compare(&a.body, &r.body);
                 let lt = compare(&a.later, &r.later);
+                if base_json.contains("base_metallic") {
+                    // The reference's effective number of later metal bounces: the same walks
+                    // (same seed) over a white metal give the later light without absorption,
+                    // `n = ln(L_F/L_1)/ln F − 1` (the first bounce's `F` taken out; F = 0.9, the
+                    // base colour above).
+                    let white = Material::from_json(&json.replace("[0.9, 0.9, 0.9]", "[1, 1, 1]")).expect("valid");
+                    let Model::CoatedPaint(white) = white.model() else { unreachable!() };
+                    let w = reference(white, wo, walks, seed);
+                    let (later_f, later_1): (f64, f64) =
+                        (r.by_bounces[1..].iter().sum(), w.by_bounces[1..].iter().sum());
+                    eprintln!(
+                        "{base_name} α {alpha} θo {theta}: the reference's later light {later_f:.4} (white metal {later_1:.4}): effective later metal bounces n = {:.2}",
+                        (later_f / later_1).ln() / 0.9f64.ln() - 1.0
+                    );
+                }
                 eprintln!(
                     "{base_name} α {alpha} θo {theta}: later light {:.4} vs {:.4}, lobe {:.2} % (noise {:.2})",
                     lt[0],
