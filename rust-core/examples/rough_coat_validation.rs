@@ -188,7 +188,9 @@ fn main() {
                     // (same seed) over a white metal give the later light without absorption,
                     // `n = ln(L_F/L_1)/ln F − 1` (the first bounce's `F` taken out; F = 0.9, the
                     // base colour above).
-                    let white = Material::from_json(&json.replace("[0.9, 0.9, 0.9]", "[1, 1, 1]")).expect("valid");
+                    let white_json = json.replace("[0.9, 0.9, 0.9]", "[1, 1, 1]");
+                    assert_ne!(white_json, json, "the metal base's colour is 0.9 (see BASES)");
+                    let white = Material::from_json(&white_json).expect("valid");
                     let Model::CoatedPaint(white) = white.model() else { unreachable!() };
                     let w = reference(white, wo, walks, seed);
                     let (later_f, later_1): (f64, f64) =
