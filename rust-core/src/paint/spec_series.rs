@@ -20,24 +20,34 @@
 //! of [`super::varying`] combine it as they combine the base's own lobes), symmetric in
 //! `(wi, wo)` (reciprocal), and non-negative.
 //!
-//! **The weights** (per coat, built by [`SpecSeries::build`], 48 μ nodes, 2048 points each):
-//! for each component `F` ∈ {1, (1 − c)⁵} of a unit metal (`m = 1`) under the coat,
-//! `R_F(μ)` is what the coat reflects back down after the first base bounce (the layer
-//! tables' `U − A1` of that component) and `A_F(μ)` the albedo of the widened term with unit
-//! weights; `w_F = σ_F R_F/A_F`. With the weights `√(w(μi) w(μo))` the term's albedo
-//! `S_F(μ)` is only close to `R_F(μ)`, so `σ_F = min_μ R_F/S_F` (over the table nodes)
-//! makes `S_F ≤ R_F` at every node, with equality at the tightest one. (Until issue 17's
-//! third pass `σ_F` was also capped at 1; the fixed-point rounds fix the shape of `S_F/R_F`
-//! but not its scale — a uniform error flips between `c` and `1/c` from round to round — so
-//! the cap left the series' albedo 8–10 % below `R_F` at every node for coat α 0.1–0.3.)
-//! Since the paint's `S` is `m(F0 S₁ + (1 − F0) S₀)` and its `R_spec` is
-//! `m(F0 R₁ + (1 − F0) R₀)`, `S ≤ R_spec` for every `F0` in [0, 1] and weight `m`, and the albedo `E_top + ΔR + A1 + S + M ≤ E_top + ΔR + A1 + R_spec + R_rest =
-//! E_top + ΔR + U ≤ 1` (up to the tables' linear interpolation between nodes).
+//! **The target** (per coat, built by [`SpecSeries::build`], 48 μ nodes): for each component
+//! `F` ∈ {1, (1 − c)⁵} of a unit metal (`m = 1`) under the coat, `R_F(μ)` is what the series
+//! must return: walks with the physics of the position-free reference (`reference_walks`:
+//! the lossless multiple-scattering rough interface, the metal's own GGX lobe, 4096 walks at
+//! every other node, four times as many for the first bounce, interpolated between) give the light that leaves after the first metal bounce (`first`) and after two or
+//! more (`later`, a white metal after the first); the single-scatter layer term lets out
+//! `A1_F(μ)` of the first bounce (2048 points of the blurred base, out with `T`), so
+//! `R_F = first + later − A1_F`, at most `T − A1_F`. The series thus carries what the rough
+//! interface reflects back down and lets out later, and what the layer term's crossing at the
+//! macro normal misses of the first bounce (or gives too much of: then `R_F` is less than
+//! `later`). Until session 35 `R_F` was what the layer tables send back down (`U − A1`), which
+//! the blurred pair's `min` had already thinned by up to 22 % at grazing view (§8 of
+//! docs/paint-validation.md, fifth pass).
+//!
+//! **The weights**: `A_F(μ)` is the albedo of the widened term with unit weights and
+//! `w_F = σ_F R_F/A_F`. With the weights `√(w(μi) w(μo))` the term's albedo `S_F(μ)` is only
+//! close to `R_F(μ)`: fixed-point rounds `w ← w (R/S)²` settle the shape of `S_F/R_F`, and
+//! `σ_F` is the least-squares fit of `S_F` to `R_F` over the nodes, at most
+//! `min_μ (T − A1_F)/S_F`. So `A1_F + S_F ≤ T` at every node; the paint's `A1 + S` of the
+//! metal is linear in `F0` and in the metal weight `m`, so it stays below `m T` for every `F0`
+//! in [0, 1], the other components' `A1 + M` below their share of `U`, and the albedo
+//! `E_top + ΔR + A1 + S + M ≤ E_top + ΔR + T = 1` (up to the tables' linear interpolation
+//! between nodes).
 //!
 //! **Later bounces**: a grey metal absorbs `1 − F0` at each later bounce; the lobe carries
-//! `F0^n` per channel with `n` the effective number of later metal bounces per node
-//! (`later_bounces`: walks under the coat whose interface lets out what the lossless rough
-//! interface does, [`Coat::escape_from_inside`], also beyond the critical angle).
+//! `F0^n` per channel with `n` the effective number of later metal bounces per node (from the
+//! same walks: `E[0.9^N] = E[1] 0.9^n` over the later light, with the first bounce's light that
+//! `A1` misses counted with no later bounce).
 //!
 //! **Assumptions**: the later bounces' Fresnel is `F0` (Schlick's normal value, exact for
 //! `F0` = 1 and matched at `F0` = 0.9 by `n`); the lobe of
@@ -53,6 +63,7 @@
 use super::basecoat::{Basecoat, MetalBase};
 use super::coat::Coat;
 use super::flakes::FlakeSampler;
+use super::rough_dielectric::RoughDielectric;
 use crate::frame::half_vector_masked;
 use crate::lanes::{self, keep, Lanes};
 use crate::math::{Rgb, Vec3};
@@ -70,7 +81,7 @@ const SAMPLES: usize = 2048;
 #[derive(Clone, Debug)]
 pub struct SpecSeries {
     /// `[w₁, w₀, n]` per outside `μ` node (`n` the effective number of later metal bounces,
-    /// `later_bounces`).
+    /// `reference_walks`).
     pub weights: MuTable,
     /// `[S₁, S₀, 0]`: the term's albedo per unit metal weight, per component (for the lobe
     /// selection).
@@ -147,26 +158,62 @@ impl SpecSeries {
         let mut weights = [vec![0.0; NODES], vec![0.0; NODES]];
         let mut albedo = [vec![0.0; NODES], vec![0.0; NODES]];
         let mut n_eff = vec![0.0; NODES];
+        // The walks behind the target (both components on the same paths), at every
+        // `WALK_STRIDE`-th node and interpolated linearly in μ between them.
+        let inside_escape = coat.inside_escape_table();
+        let walked_nodes: Vec<usize> = (0..NODES).step_by(WALK_STRIDE).chain([NODES - 1]).collect();
+        let walked_at: Vec<Walked> = crate::parallel::map_indices(walked_nodes.len(), |j| {
+            reference_walks(coat, metal_alpha, &inside_escape, nodes[walked_nodes[j]].0)
+        });
+        let walked: Vec<Walked> = (0..NODES)
+            .map(|k| {
+                let j = walked_nodes.iter().rposition(|&n| n <= k).expect("node 0 is walked");
+                if walked_nodes[j] == k {
+                    return walked_at[j];
+                }
+                let (k0, k1) = (walked_nodes[j], walked_nodes[j + 1]);
+                walked_at[j].lerp(&walked_at[j + 1], (k - k0) as f64 / (k1 - k0) as f64)
+            })
+            .collect();
         for (c, f0) in [1.0, 0.0].into_iter().enumerate() {
             let metal = MetalBase { alpha: metal_alpha, f0: [f0; 3], weight: 1.0 };
             let base = Basecoat::new([0.0; 3], 0.0, 0.0, None, Some(metal.clone()), None).with_blur(blur);
-            // R_F(μ): what the coat sends back down after the first base bounce.
-            // The nodes are independent (each sums its own samples in order, `later_bounces`
-            // seeds its own generator): they run on up to `batch::thread_count()` threads.
-            let r: Vec<f64> = crate::parallel::map_indices(NODES, |k| {
+            // A1_F(μ): what the single-scatter layer term lets out of the first bounce (the
+            // layer tables' `A1` of this component: the blurred base, out with `T`).
+            // The nodes are independent (each sums its own samples in order, the walks seed
+            // their own generators): they run on up to `batch::thread_count()` threads.
+            let a1: Vec<f64> = crate::parallel::map_indices(NODES, |k| {
                 let (mu, w_in) = nodes[k];
                 let t = coat.transmittance(mu);
-                let mut r = 0.0;
+                let mut a1 = 0.0;
                 for u in &points {
                     if let Some(b) = base.sample_by(w_in, *u, FlakeSampler::Visible) {
-                        r += t * b.weight[0] * (1.0 - escape(b.wi)) / SAMPLES as f64;
+                        a1 += t * b.weight[0] * escape(b.wi) / SAMPLES as f64;
                     }
                 }
-                r
+                a1
             });
+            // R_F(μ): what the series returns, from walks with the reference's physics: all
+            // the light that leaves after the first bounce, plus what `A1` misses of the first
+            // bounce (or less what it adds), at most what `A1` leaves of the light that
+            // entered (`T − A1`: the energy bound).
+            let cap: Vec<f64> = (0..NODES).map(|k| (coat.transmittance(nodes[k].0) - a1[k]).max(0.0)).collect();
+            let r: Vec<f64> =
+                (0..NODES).map(|k| (walked[k].later[c] + walked[k].first[c] - a1[k]).clamp(0.0, cap[k])).collect();
             if c == 0 {
-                let inside_escape = coat.inside_escape_table();
-                n_eff = crate::parallel::map_indices(NODES, |k| later_bounces(&base, coat, &inside_escape, nodes[k].1));
+                // The series carries the later light (`n_later` later bounces) and, where `A1`
+                // misses some of the first bounce, that light (no later bounce).
+                n_eff = (0..NODES)
+                    .map(|k| {
+                        let Walked { first: [first, _], later: [later, _], n_later } = walked[k];
+                        let missed = (first - a1[k]).max(0.0);
+                        if missed > 0.0 && later > 0.0 {
+                            ((missed + later * F_REF.powf(n_later)) / (missed + later)).ln() / F_REF.ln()
+                        } else {
+                            n_later
+                        }
+                    })
+                    .collect();
             }
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
             // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
@@ -223,9 +270,15 @@ impl SpecSeries {
                     }
                 }
             }
+            // The scale: the least-squares fit of S_F to R_F over the nodes (the walks' noise
+            // stays in R_F, so a bound by R_F at every node would follow its lowest dip), at most
+            // what keeps S_F ≤ T − A1_F at every node (energy conservation).
             let s = albedo_with(&w);
-            let sigma =
-                r.iter().zip(&s).filter(|(_, &s)| s > 0.0).fold(f64::INFINITY, |acc, (&r, &s)| acc.min(r / s)).max(0.0);
+            let (rs, ss) = r.iter().zip(&s).fold((0.0, 0.0), |(rs, ss), (&r, &s)| (rs + r * s, ss + s * s));
+            let fit = if ss > 0.0 { rs / ss } else { 0.0 };
+            let bound =
+                cap.iter().zip(&s).filter(|(_, &s)| s > 0.0).fold(f64::INFINITY, |acc, (&c, &s)| acc.min(c / s));
+            let sigma = fit.min(bound).max(0.0);
             weights[c] = w.iter().map(|w| sigma * w).collect();
             albedo[c] = s.iter().map(|s| sigma * s).collect();
         }
@@ -236,64 +289,119 @@ impl SpecSeries {
     }
 }
 
-/// Walks per node of [`later_bounces`].
-const WALKS: usize = 1024;
-/// Largest number of round trips a walk of [`later_bounces`] follows.
+/// Walks per node of `reference_walks`.
+const WALKS: usize = 4096;
+/// Of the walks for the first bounce's light, every `FIRST_BOUNCE_FACTOR`-th goes on to the later
+/// bounces: the target is `first + later − A1`, a small difference where `first` and `A1` are
+/// large (near the normal), so `first` takes more walks (they are cheap: two events each), and
+/// the per-element α grid's interpolation between coats sees less of the walks' noise
+/// (`tests/integration/varying.rs`, `alpha_interpolation_error_against_fixed_alpha_tables`).
+const FIRST_BOUNCE_FACTOR: usize = 4;
+/// `reference_walks` runs at every `WALK_STRIDE`-th μ node (and the last); the nodes between
+/// interpolate (the walks' results are smooth in μ, their cost is the table's build time).
+const WALK_STRIDE: usize = 2;
+/// Largest number of round trips a walk of `reference_walks` follows.
 const MAX_ROUNDS: usize = 48;
-/// The metal albedo at which [`later_bounces`] matches `E[F^N]`.
+/// The metal albedo at which the effective number of later bounces matches `E[F^N]`.
 const F_REF: f64 = 0.9;
 
-/// The effective number `n` of later metal bounces of the light the coat sends back down
-/// after the first bounce from the inside direction `w_in`: walks of a white metal (`base`,
-/// F0 = 1) under `coat` (mirrored at the mean plane; the coat's roughness enters through the
-/// base's blur) give the escaping energy `E[1]` and `E[F_ref^N]` (`N` the metal bounces after
-/// the return, `F_ref` = 0.9), and `n = ln(E[F_ref^N]/E[1]) / ln F_ref`, so `F^n` is exact for
-/// `F` = 1 and 0.9. Light that total internal reflection keeps near the base's mirror
-/// direction meets the metal many times (`n` large): a grey metal absorbs it.
-///
-/// The walk starts from what the layer tables count as sent back down (`1 − escape` of the
-/// macro-normal refraction, `escape`), but a rough interface lets more out than that, also
-/// beyond the critical angle (`inside_escape`: [`Coat::escape_from_inside`], 0.18–0.44 at
-/// μ' 0.70–0.74 for α 0.1–0.3, where the macro refraction gives 0): the share
-/// `(T_out − escape)/(1 − escape)` of the returned light leaves at once, with no later metal
-/// bounce, and every later return escapes with `T_out`. For a smooth coat `T_out` is `escape`
-/// and the walk is the macro-refraction one.
-fn later_bounces(base: &Basecoat, coat: &Coat, inside_escape: &MuTable, w_in: Vec3<f64>) -> f64 {
-    let escape = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| coat.transmittance(o.z));
-    let t_out = |v: Vec3<f64>| inside_escape.eval::<f64>(v.z.clamp(0.0, 1.0))[0];
-    let mut rng = Pcg32::new(0x5bec_5e1e5, (w_in.z * 1e6) as u64);
-    let (mut e1, mut eref) = (0.0, 0.0);
-    for _ in 0..WALKS {
-        let Some(first) = base.sample_by(w_in, rng.uniform3(), FlakeSampler::Visible) else { continue };
-        let macro_escape = escape(first.wi);
-        let mut weight = first.weight[0] * (1.0 - macro_escape);
-        if macro_escape < 1.0 {
-            let at_once = ((t_out(first.wi) - macro_escape) / (1.0 - macro_escape)).clamp(0.0, 1.0);
-            e1 += weight * at_once;
-            eref += weight * at_once;
-            weight *= 1.0 - at_once;
+/// What `reference_walks` measures per unit of light incident from outside, per Schlick
+/// component `F` ∈ {1, (1 − c)⁵} of the first bounce.
+#[derive(Clone, Copy, Debug)]
+struct Walked {
+    /// The light that leaves after the first metal bounce.
+    first: [f64; 2],
+    /// The light that leaves after two or more metal bounces (a white metal after the first).
+    later: [f64; 2],
+    /// The effective number `n` of later metal bounces of `later[0]`: `E[F_ref^N] = E[1]
+    /// F_ref^n` (`N` the bounces after the first, `F_ref` = 0.9), so `F^n` is exact for `F` = 1
+    /// and 0.9.
+    n_later: f64,
+}
+
+impl Walked {
+    /// `self + (other − self) t`, per field.
+    fn lerp(&self, other: &Self, t: f64) -> Self {
+        let mix = |a: f64, b: f64| a + (b - a) * t;
+        Self {
+            first: [0, 1].map(|c| mix(self.first[c], other.first[c])),
+            later: [0, 1].map(|c| mix(self.later[c], other.later[c])),
+            n_later: mix(self.n_later, other.n_later),
         }
-        let mut v = first.wi;
+    }
+}
+
+/// `WALKS` walks (`FIRST_BOUNCE_FACTOR` times as many for the first bounce) of the position-free reference's physics (`super::position_free_mc`) for the
+/// outside direction of cosine `mu`: in through the coat's interface by the lossless
+/// multiple-scattering rough dielectric (`RoughDielectric::sample_multiple`), a first bounce on
+/// a white metal (GGX of `metal_alpha`, not blurred: the walk crosses the rough interface
+/// itself; the `(1 − c)⁵` component weighs the same paths by Schlick's factor), then up to the
+/// interface, which lets out `T_out` (`Coat::escape_from_inside`, tabulated in
+/// `inside_escape`; the expected share, for less noise) and reflects the rest down in a
+/// direction drawn from the interface; later bounces on a white metal until the interface lets
+/// the light out. No absorption in the coat (the term applies it per direction).
+fn reference_walks(coat: &Coat, metal_alpha: f64, inside_escape: &MuTable, mu: f64) -> Walked {
+    let top = RoughDielectric { eta: coat.ior, alpha: coat.roughness };
+    let white = Basecoat::new(
+        [0.0; 3],
+        0.0,
+        0.0,
+        None,
+        Some(MetalBase { alpha: metal_alpha, f0: [1.0; 3], weight: 1.0 }),
+        None,
+    );
+    let t_out = |v: Vec3<f64>| inside_escape.eval::<f64>(v.z.clamp(0.0, 1.0))[0];
+    let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let mut rng = Pcg32::new(0xfa17_4f01, (mu * 1e6) as u64);
+    let (mut first, mut later, mut later_ref) = ([0.0; 2], [0.0; 2], 0.0);
+    for walk in 0..WALKS * FIRST_BOUNCE_FACTOR {
+        let Some((d, _)) = top.sample_multiple(wo, &mut rng) else { continue };
+        if d.z >= 0.0 {
+            continue; // reflected by the coat
+        }
+        let Some(b) = white.sample_by(-d, rng.uniform3(), FlakeSampler::Visible) else { continue };
+        // Schlick's `(1 − c)⁵` with `c` = wi·h of the first bounce.
+        let h = (b.wi - d).normalize();
+        let m = (1.0 - b.wi.dot(h).clamp(0.0, 1.0)).max(0.0);
+        let schlick = [1.0, m * m * m * m * m];
+        let escape = t_out(b.wi);
+        for c in 0..2 {
+            first[c] += b.weight[0] * schlick[c] * escape;
+        }
+        let mut weight = b.weight[0] * (1.0 - escape);
+        if walk % FIRST_BOUNCE_FACTOR != 0 || !(weight > 1e-12) {
+            continue;
+        }
+        // The direction the interface reflects down, given that it reflects (drawn again until
+        // it does: the reflected share is `1 − T_out` > 1e-12 here).
+        let mut down = None;
+        for _ in 0..64 {
+            if let Some((d, _)) = top.sample_multiple(-b.wi, &mut rng) {
+                if d.z < 0.0 {
+                    down = Some(d);
+                    break;
+                }
+            }
+        }
+        let Some(mut d) = down else { continue };
         let mut f = 1.0;
         for _ in 0..MAX_ROUNDS {
-            if !(weight > 1e-9) {
-                break;
-            }
-            // Reflected down by the coat: the base sees it coming from the mirrored direction.
-            let from = Vec3::new(-v.x, -v.y, v.z);
-            let Some(b) = base.sample_by(from, rng.uniform3(), FlakeSampler::Visible) else { break };
+            let Some(b) = white.sample_by(-d, rng.uniform3(), FlakeSampler::Visible) else { break };
             weight *= b.weight[0];
             f *= F_REF;
-            v = b.wi;
-            let esc = t_out(v);
-            e1 += weight * esc;
-            eref += weight * esc * f;
-            weight *= 1.0 - esc;
+            let Some((e, _)) = top.sample_multiple(-b.wi, &mut rng) else { break };
+            if e.z > 0.0 {
+                for c in 0..2 {
+                    later[c] += weight * schlick[c];
+                }
+                later_ref += weight * f;
+                break;
+            }
+            d = e;
         }
     }
-    if e1 > 1e-12 && eref > 1e-12 {
-        (eref / e1).ln() / F_REF.ln()
-    } else {
-        1.0
-    }
+    let n_later = if later[0] > 1e-12 && later_ref > 1e-12 { (later_ref / later[0]).ln() / F_REF.ln() } else { 1.0 };
+    let per_walk = 1.0 / WALKS as f64;
+    let per_first = per_walk / FIRST_BOUNCE_FACTOR as f64;
+    Walked { first: first.map(|x| x * per_first), later: later.map(|x| x * per_walk), n_later }
 }
