@@ -1590,8 +1590,8 @@ mod tests {
     /// docs/paint-validation.md, 400 000 walks) — the bounce series returned what the blurred
     /// `min` lobe sends back down, with too few later bounces. Now its target and `n` come from
     /// walks with the reference's physics (`spec_series::reference_walks`). Measured here
-    /// (100 000; before the first-bounce walks were quadrupled, `spec_series::FIRST_BOUNCE_FACTOR`):
-    /// +1.13 / +0.97 / +1.38 / +1.12 / +0.91 / −0.49 %. Asserted: within the 2 % goal at each cell (the old model fails
+    /// (100 000): +0.91 / +0.83 / +0.86 / +1.37 / +0.65 / +0.60 % (+1.13 / +0.97 / +1.38 / +1.12 /
+    /// +0.91 / −0.49 % with a quarter of the first-bounce walks, `spec_series::FIRST_BOUNCE_FACTOR`). Asserted: within the 2 % goal at each cell (the old model fails
     /// three). ≈ 3 s in release.
     #[test]
     fn rough_coat_metal_base_albedo_against_the_reference() {

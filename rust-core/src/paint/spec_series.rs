@@ -193,9 +193,9 @@ impl SpecSeries {
                 }
                 a1
             });
-            // R_F(μ): what the series returns, from walks with the reference's physics: all
-            // the light that leaves after the first bounce, plus what `A1` misses of the first
-            // bounce (or less what it adds), at most what `A1` leaves of the light that
+            // R_F(μ): what the series returns, from walks with the reference's physics: the
+            // light that leaves after two or more bounces, plus what `A1` misses of the first
+            // bounce's light (or less what it adds), at most what `A1` leaves of the light that
             // entered (`T − A1`: the energy bound).
             let cap: Vec<f64> = (0..NODES).map(|k| (coat.transmittance(nodes[k].0) - a1[k]).max(0.0)).collect();
             let r: Vec<f64> =
