@@ -26,8 +26,9 @@
 //! model's tabulated albedos of its single-scatter layer term `A1`, the metal's bounce series
 //! `S` (before the later bounces' absorption `F0^n`) and the multiple-scatter lobe `M`; and the
 //! light after two or more base bounces (reference) against `S + M` (model): both albedos and
-//! the lobe-shape error between them, so the first-bounce and the later-bounce light can be
-//! judged apart.
+//! the lobe-shape error between them, and the light after one base bounce (reference) against
+//! the single-scatter layer term without the series (model), so the first-bounce and the
+//! later-bounce light can be judged apart.
 
 use lacquer::frame::spherical_direction;
 use lacquer::paint::coated_paint::CoatedPaint;
@@ -65,6 +66,10 @@ struct Lobe {
     /// `base_bounces ≥ 2`; the model's bounce series `S` plus its multiple-scatter lobe `M`
     /// (the terms that stand for those orders).
     later: LobeHistogram,
+    /// The light that left after one basecoat bounce: the reference's walks that entered with
+    /// `base_bounces ≤ 1`; the model's single-scatter layer term without the bounce series
+    /// (`A1`'s lobe).
+    first: LobeHistogram,
     /// The reference's light that crossed the coat by the number of basecoat bounces before
     /// it left (1, 2, 3, 4 or more; luminance albedo): which orders an albedo error sits in.
     by_bounces: [f64; 4],
@@ -85,6 +90,7 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
     let mut rng = Pcg32::new(seed, 0x7c0a7);
     let mut by_bounces = [0.0; 4];
     let (mut l, mut l2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
+    let (mut f, mut f2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     for _ in 0..walks {
         let Some(exit) = mc.albedo_walk_exit(wo, &mut rng) else { continue };
         let k = lobe_bin(exit.direction, 0.0, N_MU, N_PHI);
@@ -94,6 +100,8 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
             by_bounces[(exit.base_bounces.max(1) as usize - 1).min(3)] += exit.weight.luminance() / walks as f64;
             if exit.base_bounces >= 2 {
                 accumulate(&mut l, &mut l2, k, exit.weight);
+            } else {
+                accumulate(&mut f, &mut f2, k, exit.weight);
             }
         }
     }
@@ -101,6 +109,7 @@ fn reference(paint: &CoatedPaint, wo: Vec3<f64>, walks: usize, seed: u64) -> Lob
         all: LobeHistogram::from_sums(&s, &s2, walks, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, walks, N_MU, N_PHI),
         later: LobeHistogram::from_sums(&l, &l2, walks, N_MU, N_PHI),
+        first: LobeHistogram::from_sums(&f, &f2, walks, N_MU, N_PHI),
         by_bounces,
     }
 }
@@ -111,6 +120,7 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
         (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     let mut rng = Pcg32::new(seed, 0xa7a1);
     let (mut l, mut l2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
+    let (mut f, mut f2) = (vec![[0.0; 3]; bins], vec![[0.0; 3]; bins]);
     for _ in 0..samples {
         let Some(smp) = paint.sample(wo, rng.uniform3()) else { continue };
         if smp.wi.z <= 0.0 || smp.delta {
@@ -121,13 +131,16 @@ fn analytic(paint: &CoatedPaint, wo: Vec3<f64>, samples: usize, seed: u64) -> Lo
         let [_, layer, multiple] = paint.eval_terms(smp.wi, wo);
         let body = (layer + multiple) * (smp.wi.z / smp.pdf);
         accumulate(&mut b, &mut b2, k, body);
-        let later = (paint.eval_series_term(smp.wi, wo) + multiple) * (smp.wi.z / smp.pdf);
+        let series = paint.eval_series_term(smp.wi, wo);
+        let later = (series + multiple) * (smp.wi.z / smp.pdf);
         accumulate(&mut l, &mut l2, k, later);
+        accumulate(&mut f, &mut f2, k, (layer - series) * (smp.wi.z / smp.pdf));
     }
     Lobe {
         all: LobeHistogram::from_sums(&s, &s2, samples, N_MU, N_PHI),
         body: LobeHistogram::from_sums(&b, &b2, samples, N_MU, N_PHI),
         later: LobeHistogram::from_sums(&l, &l2, samples, N_MU, N_PHI),
+        first: LobeHistogram::from_sums(&f, &f2, samples, N_MU, N_PHI),
         by_bounces: [0.0; 4],
     }
 }
@@ -183,6 +196,7 @@ fn main() {
                 let all = compare(&a.all, &r.all);
                 let b = compare(&a.body, &r.body);
                 let lt = compare(&a.later, &r.later);
+                let ft = compare(&a.first, &r.first);
                 if base_json.contains("base_metallic") {
                     // The reference's effective number of later metal bounces: the same walks
                     // (same seed) over a white metal give the later light without absorption,
@@ -206,6 +220,13 @@ fn main() {
                     lt[1],
                     100.0 * lt[4],
                     100.0 * lt[5]
+                );
+                eprintln!(
+                    "{base_name} α {alpha} θo {theta}: first-bounce light {:.4} vs {:.4}, lobe {:.2} % (noise {:.2})",
+                    ft[0],
+                    ft[1],
+                    100.0 * ft[4],
+                    100.0 * ft[5]
                 );
                 // The model's terms' albedos at θo (its tables): single-scatter layer `A1`,
                 // the metal's bounce series `S`, the multiple-scatter lobe `M` (luminance).

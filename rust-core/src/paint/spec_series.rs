@@ -11,7 +11,8 @@
 //!   [F0 √(w₁(μi) w₁(μo)) + (1 − F0)(1 − wi'·h)⁵ √(w₀(μi) w₀(μo))]`
 //!
 //! per channel, with `D̃G̃` the metal base's GGX lobe (height-correlated Smith) widened by
-//! `α_b² + α_c²` (one more base bounce and one reflection off the coat's rough underside,
+//! `α_b² (1 + n) + α_c²` at each direction ([`series_widening`]: the later metal bounces, `n`
+//! per direction from the walks below, and one reflection off the coat's rough underside,
 //! whose facets tilt the direction as the base's do) on top of the coat's transmission blur
 //! (the smaller of the lobes seen from `wo'` and `wi'`, as the single-scatter term), `m` the
 //! metal's weight and `F0` its Schlick reflectance. Schlick's `F = F0 + (1 − F0)(1 − c)⁵` is
@@ -24,7 +25,8 @@
 //! `F` ∈ {1, (1 − c)⁵} of a unit metal (`m = 1`) under the coat, `R_F(μ)` is what the series
 //! must return: walks with the physics of the position-free reference (`reference_walks`:
 //! the lossless multiple-scattering rough interface, the metal's own GGX lobe, 4096 walks at
-//! every other node, four times as many for the first bounce, interpolated between) give the light that leaves after the first metal bounce (`first`) and after two or
+//! every other node, four times as many for the first bounce, smoothed over neighbouring
+//! walked nodes and interpolated between) give the light that leaves after the first metal bounce (`first`) and after two or
 //! more (`later`, a white metal after the first); the single-scatter layer term lets out
 //! `A1_F(μ)` of the first bounce (2048 points of the blurred base, out with `T`), so
 //! `R_F = first + later − A1_F`, at most `T − A1_F`. The series thus carries what the rough
@@ -51,8 +53,13 @@
 //!
 //! **Assumptions**: the later bounces' Fresnel is `F0` (Schlick's normal value, exact for
 //! `F0` = 1 and matched at `F0` = 0.9 by `n`); the lobe of
-//! all later orders is one GGX lobe widened by one round trip (the second order, which
-//! dominates when the coat reflects little); the weights are computed without the coat's
+//! all later orders is one GGX lobe, as wide as the metal lobe after its later bounces (the
+//! slope variances of successive reflections add; each direction's own `n`, the pair's lobe
+//! the smaller of the two, as the blur's) and one reflection off the coat's underside (the
+//! coat's `α_c²` once: once per bounce over-widens it for α_c ≥ 0.2, §8 of
+//! docs/paint-validation.md, seventh pass); until session 36 it was widened by one round
+//! trip at every direction (`α_b² + α_c²`), too narrow where the light is trapped beyond the
+//! critical angle for several bounces (grazing view); the weights are computed without the coat's
 //! absorption (which scales `S` through `τ(wi') τ(wo')` at evaluation); the weight of a pair of
 //! directions is the geometric mean of the two directions' weights (the symmetric choice;
 //! exact for a mirror base, where `μi = μo`).
@@ -86,13 +93,25 @@ pub struct SpecSeries {
     /// `[S₁, S₀, 0]`: the term's albedo per unit metal weight, per component (for the lobe
     /// selection).
     pub albedo: MuTable,
-    /// What the series adds to the metal lobe's `α²`: `α_b² + α_c²`.
-    pub extra: f64,
+    /// The metal base's `α_b²` (GGX).
+    pub metal_alpha2: f64,
+    /// The coat's `α_c²` (GGX).
+    pub coat_alpha2: f64,
+}
+
+/// What the series adds to the metal lobe's `α²` at a direction whose light takes `n` later
+/// metal bounces (the weight tables' third column): `α_b² (1 + n) + α_c²` — each later
+/// reflection off the metal adds its slope variance, one reflection off the coat's rough
+/// underside adds the coat's. `n` is the absorption-weighted count (`E[F0^N] = F0^n`), below
+/// the mean count by Jensen's inequality: the `1 +` makes up for it (measured, module doc).
+#[inline(always)]
+pub(crate) fn series_widening<L: Lanes>(metal_alpha2: L, coat_alpha2: L, n: L) -> L {
+    metal_alpha2 * (L::c(1.0) + n) + coat_alpha2
 }
 
 /// The widened lobe `m D̃G̃/(4 μi' μo') · [F0 W₁ + (1 − F0)(1 − wi'·h)⁵ W₀] · g(F0, r̄)` per
 /// channel, directions inside the coat; `added` what is added to the metal's `α²` seen from
-/// `wi'`, `wo'` (the transmission blur plus [`SpecSeries::extra`]); `w1`, `w0` the pair's
+/// `wi'`, `wo'` (the transmission blur plus [`series_widening`]); `w1`, `w0` the pair's
 /// weights `√(w(μi) w(μo))`; `n_eff` the pair's mean `(n(μi) + n(μo))/2` of the effective
 /// number of later metal bounces, or None for `g = 1` (the table build); `g = F0^n_eff` per
 /// channel, the share of the light sent back down that a metal of albedo ≈ `F0` lets escape.
@@ -144,7 +163,7 @@ impl SpecSeries {
             return None;
         }
         let blur = coat.transmission_blur();
-        let extra = metal_alpha * metal_alpha + coat.roughness * coat.roughness;
+        let (metal_alpha2, coat_alpha2) = (metal_alpha * metal_alpha, coat.roughness * coat.roughness);
         let points: Vec<[f64; 3]> = (0..SAMPLES).map(|k| hammersley3(k, SAMPLES)).collect();
         let escape = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| coat.transmittance(o.z));
         let mu_out = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| o.z);
@@ -154,7 +173,6 @@ impl SpecSeries {
                 (mu, coat.refract_in(Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu)))
             })
             .collect();
-        let added = |mu_in: f64| blur.map_or(0.0, |b| b.one_sided(mu_in)) + extra;
         let mut weights = [vec![0.0; NODES], vec![0.0; NODES]];
         let mut albedo = [vec![0.0; NODES], vec![0.0; NODES]];
         let mut n_eff = vec![0.0; NODES];
@@ -165,6 +183,18 @@ impl SpecSeries {
         let walked_at: Vec<Walked> = crate::parallel::map_indices(walked_nodes.len(), |j| {
             reference_walks(coat, metal_alpha, &inside_escape, nodes[walked_nodes[j]].0)
         });
+        // The walks' noise, smoothed over neighbouring walked nodes ([1, 2, 1]/4; the last
+        // node, μ = 1, with its neighbour as (2, 1)/3; the first, μ ≈ 0, as walked): the
+        // per-element α grid interpolates the tables of neighbouring coats, whose walks' noise
+        // differs (`tests/integration/varying.rs`, `alpha_interpolation_error_against_fixed_alpha_tables`).
+        let last = walked_at.len() - 1;
+        let walked_at: Vec<Walked> = (0..=last)
+            .map(|j| match j {
+                0 => walked_at[0],
+                j if j == last => walked_at[last].lerp(&walked_at[last - 1], 1.0 / 3.0),
+                j => walked_at[j - 1].lerp(&walked_at[j + 1], 0.5).lerp(&walked_at[j], 0.5),
+            })
+            .collect();
         let walked: Vec<Walked> = (0..NODES)
             .map(|k| {
                 let j = walked_nodes.iter().rposition(|&n| n <= k).expect("node 0 is walked");
@@ -215,6 +245,13 @@ impl SpecSeries {
                     })
                     .collect();
             }
+            // What the lobe adds to the metal's α² seen from an inside direction: the
+            // transmission blur and the widening for that direction's later bounces.
+            let n_table = MuTable::from_values(n_eff.iter().map(|&n| [n, 0.0, 0.0]).collect());
+            let added = |v: Vec3<f64>| {
+                let n = n_table.eval::<f64>(mu_out(v))[0];
+                blur.map_or(0.0, |b| b.one_sided(v.z)) + series_widening(metal_alpha2, coat_alpha2, n)
+            };
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
             // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
             // node's samples of the widened lobe are drawn and evaluated once, at unit weight:
@@ -225,7 +262,7 @@ impl SpecSeries {
                 if coat.transmittance(mu) <= 0.0 {
                     return Vec::new();
                 }
-                let wide = metal.blurred::<f64>(added(w_in.z));
+                let wide = metal.blurred::<f64>(added(w_in));
                 points
                     .iter()
                     .filter_map(|u| {
@@ -234,7 +271,7 @@ impl SpecSeries {
                         if wi.z <= 0.0 || !(pdf > 0.0) {
                             return None;
                         }
-                        let added = (added(wi.z), added(w_in.z));
+                        let added = (added(wi), added(w_in));
                         let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (1.0, 1.0), None);
                         Some((mu_out(wi), f.r * wi.z / pdf * escape(wi)))
                     })
@@ -285,7 +322,12 @@ impl SpecSeries {
         let table = |t: &[Vec<f64>; 2], third: &[f64]| {
             MuTable::from_values((0..NODES).map(|k| [t[0][k], t[1][k], third[k]]).collect())
         };
-        Some(Self { weights: table(&weights, &n_eff), albedo: table(&albedo, &[0.0; NODES]), extra })
+        Some(Self {
+            weights: table(&weights, &n_eff),
+            albedo: table(&albedo, &[0.0; NODES]),
+            metal_alpha2,
+            coat_alpha2,
+        })
     }
 }
 

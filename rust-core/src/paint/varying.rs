@@ -35,7 +35,7 @@ use super::coat::{ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
-use super::spec_series::{series_lobe, SpecSeries};
+use super::spec_series::{series_lobe, series_widening, SpecSeries};
 use crate::bxdf::{BsdfSample, LaneSample};
 use crate::frame::half_vector_masked;
 use crate::fresnel;
@@ -956,13 +956,14 @@ impl VaryingPaint {
         let (mi, mo) = (mu_at(wi.z, NODES), mu_at(wo.z, NODES));
         let pair = |t: &Flat| lanes::safe_sqrt(self.lookup(t, NODES, &e.at, &mi) * self.lookup(t, NODES, &e.at, &mo));
         let w = (pair(&spec.weights[0]), pair(&spec.weights[1]));
-        let n_eff = (self.lookup(&spec.weights[2], NODES, &e.at, &mi)
-            + self.lookup(&spec.weights[2], NODES, &e.at, &mo))
-            * L::c(0.5);
-        let extra = L::c(spec.metal_alpha2) + e.alpha * e.alpha;
+        let (n_i, n_o) =
+            (self.lookup(&spec.weights[2], NODES, &e.at, &mi), self.lookup(&spec.weights[2], NODES, &e.at, &mo));
+        let n_eff = (n_i + n_o) * L::c(0.5);
+        let widening = |n: L| series_widening(L::c(spec.metal_alpha2), e.alpha * e.alpha, n);
+        let (ei, eo) = (widening(n_i), widening(n_o));
         let added = match (self.blur_one_sided(e, wi_in.z), self.blur_one_sided(e, wo_in.z)) {
-            (Some(a), Some(o)) => (a + extra, o + extra),
-            _ => (extra, extra),
+            (Some(a), Some(o)) => (a + ei, o + eo),
+            _ => (ei, eo),
         };
         let f0 = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
         series_lobe(m, f0, e.metal_weight, added, wi_in, wo_in, w, Some(n_eff))

@@ -299,7 +299,10 @@ fn alpha_interpolation_error_against_fixed_alpha_tables() {
     // series' tables come from walks (`paint::spec_series`), whose noise differs from one coat α
     // to the next: layer measured 5.9e-3 (α 0.02, the metal paint; 9.9e-3 before the first
     // bounce took four times the walks) — the bound's margin is thin; more walks or a smoothing of
-    // the walked targets over α would widen it. Since issue 17 item 3.1
+    // the walked targets over α would widen it. Session 36: the series' width follows each
+    // direction's later-bounce count `n` from the walks, so their noise moves the lobe's width
+    // too (measured 6.8e-3 unsmoothed); with the walks smoothed over neighbouring μ nodes
+    // (`spec_series`) measured 4.3e-3 (α 0.07, the metal paint). Since issue 17 item 3.1
     // the top reflection holds the coat's multiple-scattering lobe ΔR(μi)ΔR(μo)/(πΔR̄), whose ΔR
     // is read from the α grid (the GGX lobe itself stays exact): measured 1.7e-2 at grazing pairs
     // (α 0.02), asserted 3e-2; the pdf's cosine weight holds ΔR too: measured 8.2e-3 (α 0.07),
