@@ -28,7 +28,8 @@
 //! every other node, four times as many for the first bounce, smoothed over neighbouring
 //! walked nodes and interpolated between) give the light that leaves after the first metal bounce (`first`) and after two or
 //! more (`later`, a white metal after the first); the single-scatter layer term lets out
-//! `A1_F(μ)` of the first bounce (2048 points of the blurred base, out with `T`), so
+//! `A1_F(μ)` of the first bounce (2048 points of the blurred base, out with `T`; under a rough
+//! coat at the mean refracted directions, out with `T/(η² J)`, `Coat::mean_refract_out`), so
 //! `R_F = first + later − A1_F`, at most `T − A1_F`. The series thus carries what the rough
 //! interface reflects back down and lets out later, and what the layer term's crossing at the
 //! macro normal misses of the first bounce (or gives too much of: then `R_F` is less than
@@ -216,6 +217,9 @@ impl SpecSeries {
                 let (mu, w_in) = nodes[k];
                 let t = coat.transmittance(mu);
                 let mut a1 = 0.0;
+                if coat.has_mean_refraction() {
+                    return first_bounce_albedo(coat, &metal, mu, &points, false)[0];
+                }
                 for u in &points {
                     if let Some(b) = base.sample_by(w_in, *u, FlakeSampler::Visible) {
                         a1 += t * b.weight[0] * escape(b.wi) / SAMPLES as f64;
@@ -382,6 +386,47 @@ impl Walked {
 /// `inside_escape`; the expected share, for less noise) and reflects the rest down in a
 /// direction drawn from the interface; later bounces on a white metal until the interface lets
 /// the light out. No absorption in the coat (the term applies it per direction).
+/// The albedo per channel of a metal base's first bounce under a rough coat with the mean
+/// refraction ([`Coat::mean_refract_in`]) for the outside cosine `mu`: the metal's lobe
+/// (blurred as the paint evaluates it: at the macro refraction's cosines) drawn at the mean
+/// inside direction with `points`, each sample let out with `T(μ)/(η² J(μ))` at its outside
+/// cosine ([`Coat::mean_refract_out`]), times `T(mu)`; with `absorb` the coat's attenuation
+/// at both crossings (the macro cosines, as the paint applies it). 0 without the map.
+pub(crate) fn first_bounce_albedo(
+    coat: &Coat,
+    metal: &MetalBase,
+    mu: f64,
+    points: &[[f64; 3]],
+    absorb: bool,
+) -> [f64; 3] {
+    let Some(blur) = coat.transmission_blur().filter(|_| coat.has_mean_refraction()) else { return [0.0; 3] };
+    let macro_in = |m: f64| coat.refract_in(Vec3::new((1.0 - m * m).max(0.0).sqrt(), 0.0, m));
+    let w_in = macro_in(mu);
+    let w_mean = coat.mean_refract_in(Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu));
+    let lobe_o = metal.blurred::<f64>(blur.one_sided(w_in.z));
+    let eta2 = coat.ior * coat.ior;
+    let entering = coat.transmittance(mu);
+    let a_o = if absorb { coat.attenuation(w_in.z) } else { [1.0; 3] };
+    let mut sum = [0.0; 3];
+    for u in points {
+        let v = MetalBase::sample_direction_with(&lobe_o, w_mean, u[0], u[1]);
+        let pdf = MetalBase::pdf_with(&lobe_o, v, w_mean);
+        let Some((mu_v, jacobian)) = coat.mean_refract_out(v.z).filter(|&(_, j)| v.z > 0.0 && pdf > 0.0 && j > 0.0)
+        else {
+            continue;
+        };
+        let v_in = macro_in(mu_v);
+        let lobe_i = metal.blurred(blur.one_sided(v_in.z));
+        let f = metal.eval_with(&lobe_o, Some(&lobe_i), Rgb::from_array(metal.f0), metal.weight, v, w_mean);
+        let a_v = if absorb { coat.attenuation(v_in.z) } else { [1.0; 3] };
+        let out = v.z / pdf * coat.transmittance(mu_v) / (eta2 * jacobian);
+        for c in 0..3 {
+            sum[c] += f[c] * out * a_v[c];
+        }
+    }
+    [0, 1, 2].map(|c| entering * a_o[c] * sum[c] / points.len() as f64)
+}
+
 fn reference_walks(coat: &Coat, metal_alpha: f64, inside_escape: &MuTable, mu: f64) -> Walked {
     let top = RoughDielectric { eta: coat.ior, alpha: coat.roughness };
     let white = Basecoat::new(

@@ -31,7 +31,7 @@
 //! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
 
 use super::basecoat::{BaseParts, Basecoat, MetalBase};
-use super::coat::{ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
+use super::coat::{inside_with_ratio, ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
@@ -310,6 +310,9 @@ pub struct VaryingPaint {
     /// The crossing factor `g(μ)` (`Coat::crossing`) per α node (`E_NODES` each); unused
     /// when α does not vary.
     crossing_top: Flat,
+    /// `sin θ'/sin θ` of the metal's first bounce ([`Coat::mean_refract_in`]) per α node
+    /// (`E_NODES` each); unused when α does not vary.
+    mean_refraction_top: Flat,
     /// The coat's multiple-scattering reflection `ΔR(μ)` per α node (`E_NODES` each,
     /// [`super::coat::MultipleScattering`]); unused when α does not vary.
     ms_top: Flat,
@@ -476,11 +479,15 @@ impl VaryingPaint {
             .collect();
         let mut e_top = vec![0.0; na * E_NODES];
         let mut crossing_top = vec![0.0; na * E_NODES];
+        let mut mean_refraction_top = vec![0.0; na * E_NODES];
         let (mut ms_top, mut ms_avg) = (vec![0.0; na * E_NODES], vec![0.0; na]);
         for (j, cj) in coats.iter().enumerate() {
             for m in 0..E_NODES {
                 e_top[j * E_NODES + m] = cj.reflectance(m as f64 / (E_NODES - 1) as f64);
                 crossing_top[j * E_NODES + m] = cj.crossing(m as f64 / (E_NODES - 1) as f64);
+                // The coat's own nodes (E_NODES of them): the same values.
+                mean_refraction_top[j * E_NODES + m] =
+                    cj.mean_refraction_ratio(m as f64 / (E_NODES - 1) as f64).unwrap_or(1.0 / eta);
             }
             if let Some(ms) = cj.multiple_scattering() {
                 // The coat's own nodes (E_NODES of them), so interpolation agrees.
@@ -501,6 +508,7 @@ impl VaryingPaint {
             coat,
             e_top: Flat::new(e_top),
             crossing_top: Flat::new(crossing_top),
+            mean_refraction_top: Flat::new(mean_refraction_top),
             ms_top: Flat::new(ms_top),
             ms_avg: Flat::new(ms_avg),
             folded,
@@ -822,7 +830,13 @@ impl VaryingPaint {
     /// The basecoat BRDF of the element (directions inside the coat) as its pigment and metal
     /// base, and its flakes. The flake lobe is skipped when no lane has flakes.
     #[inline(always)]
-    fn base_eval<L: Lanes>(&self, e: &Element<L>, wi: Vec3<L>, wo: Vec3<L>) -> (Rgb<L>, Rgb<L>) {
+    fn base_eval<L: Lanes>(
+        &self,
+        e: &Element<L>,
+        wi: Vec3<L>,
+        wo: Vec3<L>,
+        outside: (Vec3<L>, Vec3<L>),
+    ) -> (Rgb<L>, Rgb<L>) {
         let inv_pi = L::c(std::f64::consts::FRAC_1_PI);
         let pw = e.pigment_weight;
         let pigment = match &self.pearl_transmission {
@@ -841,8 +855,13 @@ impl VaryingPaint {
         let (at_i, at_o) = (self.blur_one_sided(e, wi.z), self.blur_one_sided(e, wo.z));
         if let Some(m) = &self.metal {
             let rho = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
+            // The first bounce at the mean refracted directions under a rough coat (the blur
+            // at the macro refraction's cosines), as `CoatedPaint`'s.
             f += match (at_i, at_o) {
-                (Some(a), Some(o)) => m.eval_with(&m.blurred(o), Some(&m.blurred(a)), rho, e.metal_weight, wi, wo),
+                (Some(a), Some(o)) => {
+                    let (mi, mo) = (self.mean_refract_in(e, outside.0), self.mean_refract_in(e, outside.1));
+                    m.eval_with(&m.blurred(o), Some(&m.blurred(a)), rho, e.metal_weight, mi, mo)
+                }
                 _ => m.eval_with(&m.microfacet::<L>(), None, rho, e.metal_weight, wi, wo),
             };
         }
@@ -858,6 +877,16 @@ impl VaryingPaint {
             }
         }
         (f, flakes)
+    }
+
+    /// The inside direction of the metal's first bounce for the outside direction `w`
+    /// ([`Coat::mean_refract_in`] of the element's coat).
+    #[inline(always)]
+    fn mean_refract_in<L: Lanes>(&self, e: &Element<L>, w: Vec3<L>) -> Vec3<L> {
+        if !self.varies_alpha() {
+            return self.coat.mean_refract_in(w);
+        }
+        inside_with_ratio(w, self.lookup(&self.mean_refraction_top, E_NODES, &e.at, &mu_at(w.z, E_NODES)))
     }
 
     /// What the transmission blur adds to the base lobes' `α²` seen from an inside direction
@@ -921,7 +950,7 @@ impl VaryingPaint {
         let crosses = lanes::gt(ti, L::c(0.0)) & lanes::gt(to, L::c(0.0));
         let (wi_in, wo_in) = (self.coat.refract_in(wi), self.coat.refract_in(wo));
         let scale = ti * to / L::c(self.coat.ior * self.coat.ior);
-        let (mut rest, flakes) = self.base_eval(e, wi_in, wo_in);
+        let (mut rest, flakes) = self.base_eval(e, wi_in, wo_in, (wi, wo));
         if let (Some(spec), Some(m)) = (&self.spec, &self.metal) {
             rest += self.spec_term(e, spec, m, wi, wo, wi_in, wo_in);
         }
