@@ -377,15 +377,6 @@ impl Walked {
     }
 }
 
-/// `WALKS` walks (`FIRST_BOUNCE_FACTOR` times as many for the first bounce) of the position-free reference's physics (`super::position_free_mc`) for the
-/// outside direction of cosine `mu`: in through the coat's interface by the lossless
-/// multiple-scattering rough dielectric (`RoughDielectric::sample_multiple`), a first bounce on
-/// a white metal (GGX of `metal_alpha`, not blurred: the walk crosses the rough interface
-/// itself; the `(1 − c)⁵` component weighs the same paths by Schlick's factor), then up to the
-/// interface, which lets out `T_out` (`Coat::escape_from_inside`, tabulated in
-/// `inside_escape`; the expected share, for less noise) and reflects the rest down in a
-/// direction drawn from the interface; later bounces on a white metal until the interface lets
-/// the light out. No absorption in the coat (the term applies it per direction).
 /// The albedo per channel of a metal base's first bounce under a rough coat with the mean
 /// refraction ([`Coat::mean_refract_in`]) for the outside cosine `mu`: the metal's lobe
 /// (blurred as the paint evaluates it: at the macro refraction's cosines) drawn at the mean
@@ -427,6 +418,15 @@ pub(crate) fn first_bounce_albedo(
     [0, 1, 2].map(|c| entering * a_o[c] * sum[c] / points.len() as f64)
 }
 
+/// `WALKS` walks (`FIRST_BOUNCE_FACTOR` times as many for the first bounce) of the position-free reference's physics (`super::position_free_mc`) for the
+/// outside direction of cosine `mu`: in through the coat's interface by the lossless
+/// multiple-scattering rough dielectric (`RoughDielectric::sample_multiple`), a first bounce on
+/// a white metal (GGX of `metal_alpha`, not blurred: the walk crosses the rough interface
+/// itself; the `(1 − c)⁵` component weighs the same paths by Schlick's factor), then up to the
+/// interface, which lets out `T_out` (`Coat::escape_from_inside`, tabulated in
+/// `inside_escape`; the expected share, for less noise) and reflects the rest down in a
+/// direction drawn from the interface; later bounces on a white metal until the interface lets
+/// the light out. No absorption in the coat (the term applies it per direction).
 fn reference_walks(coat: &Coat, metal_alpha: f64, inside_escape: &MuTable, mu: f64) -> Walked {
     let top = RoughDielectric { eta: coat.ior, alpha: coat.roughness };
     let white = Basecoat::new(
