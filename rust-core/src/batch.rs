@@ -775,22 +775,24 @@ fn eval_pdf_kernel<L: Lanes, K: LaneKernel>(
             } else {
                 Some(match (scale, lobes) {
                     (_, Some(0)) => Rgb::zero(),
-                    (Some(sc), l) => {
-                        // SAFETY: the scales hold the elements base..base + len ⊇
-                        // start..start + width.
-                        let (m, p) = unsafe {
-                            (
-                                load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
-                                load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
-                            )
-                        };
-                        match l {
-                            None => model.eval_scaled(a, o, [m, p]),
-                            Some(l) => model.eval_lobes(a, o, [m, p], l),
-                        }
-                    }
                     (None, None) => model.eval(a, o),
-                    (None, Some(l)) => model.eval_lobes(a, o, [L::splat(one), L::splat(one)], l),
+                    (scale, l) => {
+                        let sc = match scale {
+                            // SAFETY: the scales hold the elements base..base + len ⊇
+                            // start..start + width.
+                            Some(sc) => unsafe {
+                                [
+                                    load_comp::<L>(sc.metal.as_ptr(), 1, start - sc.base, width, one),
+                                    load_comp::<L>(sc.pearl.as_ptr(), 1, start - sc.base, width, one),
+                                ]
+                            },
+                            None => [L::splat(one); 2],
+                        };
+                        // Every lobe is `eval_scaled` exactly (`LaneKernel::eval_lobes`): one
+                        // call site for the scaled and the lobe-masked calls, so one inlined
+                        // copy of the model's value in this kernel instead of three.
+                        model.eval_lobes(a, o, sc, l.unwrap_or(crate::lobes::bits::SELECTABLE))
+                    }
                 })
             };
             let p = if pdf.is_none() {
@@ -1162,38 +1164,45 @@ unsafe impl Send for Args<'_, '_> {}
 unsafe impl Sync for Args<'_, '_> {}
 
 impl Args<'_, '_> {
-    /// Runs the kernel for `range` at lane type `L` (both choices of [`Args::run_paired`] are
-    /// `L`, so one kernel per op is compiled).
+    /// The eval/pdf kernel for `range` (nothing for [`Args::Sample`]) at lane type `L`, or at
+    /// the pair `P` of `L` groups when the model runs it paired
+    /// ([`LaneBxdf::PAIRED`](crate::bxdf::LaneBxdf::PAIRED)): kernels bound by one group's
+    /// dependency chain, whose two interleaved chains overlap. Constant tests, so only the
+    /// chosen lane type's kernel is compiled. The eval/pdf and sampling kernels are separate
+    /// functions at every instruction set, so that no compiled function holds both a model's
+    /// eval/pdf and its sampler: the compile's memory grows faster than its functions' sizes
+    /// (docs/reliability.md, "CI memory").
     #[inline(always)]
-    fn run<L: Lanes<Elem = f32>, K: LaneKernel>(self, kernel: &K, range: (usize, usize)) -> BatchReport {
-        self.run_paired::<L, L, K>(kernel, range)
-    }
-
-    /// [`Args::run`] at lane type `L`, or at the pair `P` of `L` groups for the kernels the
-    /// model runs paired ([`LaneBxdf::PAIRED`](crate::bxdf::LaneBxdf::PAIRED)): kernels bound
-    /// by one group's dependency chain, whose two interleaved chains overlap. Constant tests,
-    /// so only the chosen lane type's kernel is compiled.
-    #[inline(always)]
-    fn run_paired<L: Lanes<Elem = f32>, P: Lanes<Elem = f32>, K: LaneKernel>(
+    fn run_eval_pdf<L: Lanes<Elem = f32>, P: Lanes<Elem = f32>, K: LaneKernel>(
         self,
         kernel: &K,
         range: (usize, usize),
     ) -> BatchReport {
-        match self {
-            Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes } => {
-                if PairedKernels::<K>::EVAL_PDF {
-                    eval_pdf_kernel::<P, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
-                } else {
-                    eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
-                }
-            }
-            Args::Sample { wo, u, active, out, flags, lobes } => {
-                if PairedKernels::<K>::SAMPLE {
-                    sample_kernel::<P, K>(kernel, range, wo, u, active, out, flags, lobes)
-                } else {
-                    sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags, lobes)
-                }
-            }
+        let Args::EvalPdf { wi, wo, active, f, pdf, scale, lobes } = self else {
+            return BatchReport::default();
+        };
+        if PairedKernels::<K>::EVAL_PDF {
+            eval_pdf_kernel::<P, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
+        } else {
+            eval_pdf_kernel::<L, K>(kernel, range, wi, wo, active, f, pdf, scale, lobes)
+        }
+    }
+
+    /// The sampling kernel for `range` (nothing for [`Args::EvalPdf`]); lane types as
+    /// [`Args::run_eval_pdf`].
+    #[inline(always)]
+    fn run_sample<L: Lanes<Elem = f32>, P: Lanes<Elem = f32>, K: LaneKernel>(
+        self,
+        kernel: &K,
+        range: (usize, usize),
+    ) -> BatchReport {
+        let Args::Sample { wo, u, active, out, flags, lobes } = self else {
+            return BatchReport::default();
+        };
+        if PairedKernels::<K>::SAMPLE {
+            sample_kernel::<P, K>(kernel, range, wo, u, active, out, flags, lobes)
+        } else {
+            sample_kernel::<L, K>(kernel, range, wo, u, active, out, flags, lobes)
         }
     }
 
@@ -1216,28 +1225,56 @@ impl KernelVisitor for Dispatch<'_, '_> {
     #[inline(always)]
     fn visit<K: LaneKernel>(self, kernel: &K) -> BatchReport {
         let (args, range) = (self.args, self.range);
+        let sample = matches!(args, Args::Sample { .. });
         #[cfg(target_arch = "x86_64")]
         {
+            use crate::lanes::{
+                pair::X2,
+                x86::{F32x16, F32x8},
+            };
+            // One function per instruction set and operation (see `Args::run_eval_pdf`).
             #[target_feature(enable = "avx2,fma")]
-            fn avx2<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
-                use crate::lanes::{pair::X2, x86::F32x8};
-                args.run_paired::<F32x8, X2<F32x8>, K>(kernel, range)
+            fn avx2_eval_pdf<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run_eval_pdf::<F32x8, X2<F32x8>, K>(kernel, range)
+            }
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2_sample<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run_sample::<F32x8, X2<F32x8>, K>(kernel, range)
             }
             #[target_feature(enable = "avx512f")]
-            fn avx512<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
-                use crate::lanes::{pair::X2, x86::F32x16};
-                args.run_paired::<F32x16, X2<F32x16>, K>(kernel, range)
+            fn avx512_eval_pdf<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run_eval_pdf::<F32x16, X2<F32x16>, K>(kernel, range)
+            }
+            #[target_feature(enable = "avx512f")]
+            fn avx512_sample<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+                args.run_sample::<F32x16, X2<F32x16>, K>(kernel, range)
             }
             if K::NATIVE {
-                match simd_level() {
-                    // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
-                    SimdLevel::Avx512 => return unsafe { avx512(args, kernel, range) },
-                    SimdLevel::Avx2 => return unsafe { avx2(args, kernel, range) },
-                    SimdLevel::Scalar => {}
+                // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
+                match (simd_level(), sample) {
+                    (SimdLevel::Avx512, false) => return unsafe { avx512_eval_pdf(args, kernel, range) },
+                    (SimdLevel::Avx512, true) => return unsafe { avx512_sample(args, kernel, range) },
+                    (SimdLevel::Avx2, false) => return unsafe { avx2_eval_pdf(args, kernel, range) },
+                    (SimdLevel::Avx2, true) => return unsafe { avx2_sample(args, kernel, range) },
+                    (SimdLevel::Scalar, _) => {}
                 }
             }
         }
-        args.run::<f32, K>(kernel, range)
+        // The scalar path out of line, per model and operation: inlined here it made one
+        // function of every model's scalar kernels (`Args::dispatch`, 0.6 MB of machine code).
+        #[inline(never)]
+        fn scalar_eval_pdf<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+            args.run_eval_pdf::<f32, f32, K>(kernel, range)
+        }
+        #[inline(never)]
+        fn scalar_sample<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
+            args.run_sample::<f32, f32, K>(kernel, range)
+        }
+        if sample {
+            scalar_sample(args, kernel, range)
+        } else {
+            scalar_eval_pdf(args, kernel, range)
+        }
     }
 }
 
@@ -1696,50 +1733,121 @@ unsafe impl<E: Sync> Send for VaryingArgs<'_, '_, E> {}
 unsafe impl<E: Sync> Sync for VaryingArgs<'_, '_, E> {}
 
 impl<E: Real> VaryingArgs<'_, '_, E> {
+    /// Runs the kernel for `range` at lane type `L`.
     #[inline(always)]
     fn run<L: Lanes<Elem = E>>(self, vp: &VaryingPaint, tex: &PaintTexture<E>, range: (usize, usize)) -> BatchReport {
         match self {
-            VaryingArgs::EvalPdf { wi, wo, active, f, pdf } => {
-                eval_pdf_varying_kernel::<L>(vp, tex, range, wi, wo, active, f, pdf)
-            }
-            VaryingArgs::Sample { wo, u, active, out, flags } => {
-                sample_varying_kernel::<L>(vp, tex, range, wo, u, active, out, flags)
-            }
+            VaryingArgs::EvalPdf { .. } => self.run_eval_pdf::<L>(vp, tex, range),
+            VaryingArgs::Sample { .. } => self.run_sample::<L>(vp, tex, range),
         }
+    }
+
+    /// The eval/pdf kernel (nothing for [`VaryingArgs::Sample`]); a function of its own per
+    /// instruction set, as [`Args::run_eval_pdf`].
+    #[inline(always)]
+    fn run_eval_pdf<L: Lanes<Elem = E>>(
+        self,
+        vp: &VaryingPaint,
+        tex: &PaintTexture<E>,
+        range: (usize, usize),
+    ) -> BatchReport {
+        let VaryingArgs::EvalPdf { wi, wo, active, f, pdf } = self else {
+            return BatchReport::default();
+        };
+        eval_pdf_varying_kernel::<L>(vp, tex, range, wi, wo, active, f, pdf)
+    }
+
+    /// The sampling kernel (nothing for [`VaryingArgs::EvalPdf`]).
+    #[inline(always)]
+    fn run_sample<L: Lanes<Elem = E>>(
+        self,
+        vp: &VaryingPaint,
+        tex: &PaintTexture<E>,
+        range: (usize, usize),
+    ) -> BatchReport {
+        let VaryingArgs::Sample { wo, u, active, out, flags } = self else {
+            return BatchReport::default();
+        };
+        sample_varying_kernel::<L>(vp, tex, range, wo, u, active, out, flags)
     }
 }
 
 impl VaryingArgs<'_, '_, f32> {
     /// Runs the kernel for `range` at the selected instruction set.
     fn dispatch(self, vp: &VaryingPaint, tex: &PaintTexture<f32>, range: (usize, usize)) -> BatchReport {
+        let sample = matches!(self, VaryingArgs::Sample { .. });
         #[cfg(target_arch = "x86_64")]
         {
+            use crate::lanes::x86::{F32x16, F32x8};
+            // One function per instruction set and operation (see `Args::run_eval_pdf`).
             #[target_feature(enable = "avx2,fma")]
-            fn avx2(
+            fn avx2_eval_pdf(
                 a: VaryingArgs<'_, '_, f32>,
                 vp: &VaryingPaint,
                 t: &PaintTexture<f32>,
                 r: (usize, usize),
             ) -> BatchReport {
-                a.run::<crate::lanes::x86::F32x8>(vp, t, r)
+                a.run_eval_pdf::<F32x8>(vp, t, r)
+            }
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2_sample(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
+                a.run_sample::<F32x8>(vp, t, r)
             }
             #[target_feature(enable = "avx512f")]
-            fn avx512(
+            fn avx512_eval_pdf(
                 a: VaryingArgs<'_, '_, f32>,
                 vp: &VaryingPaint,
                 t: &PaintTexture<f32>,
                 r: (usize, usize),
             ) -> BatchReport {
-                a.run::<crate::lanes::x86::F32x16>(vp, t, r)
+                a.run_eval_pdf::<F32x16>(vp, t, r)
             }
-            match simd_level() {
-                // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
-                SimdLevel::Avx512 => return unsafe { avx512(self, vp, tex, range) },
-                SimdLevel::Avx2 => return unsafe { avx2(self, vp, tex, range) },
-                SimdLevel::Scalar => {}
+            #[target_feature(enable = "avx512f")]
+            fn avx512_sample(
+                a: VaryingArgs<'_, '_, f32>,
+                vp: &VaryingPaint,
+                t: &PaintTexture<f32>,
+                r: (usize, usize),
+            ) -> BatchReport {
+                a.run_sample::<F32x16>(vp, t, r)
+            }
+            // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
+            match (simd_level(), sample) {
+                (SimdLevel::Avx512, false) => return unsafe { avx512_eval_pdf(self, vp, tex, range) },
+                (SimdLevel::Avx512, true) => return unsafe { avx512_sample(self, vp, tex, range) },
+                (SimdLevel::Avx2, false) => return unsafe { avx2_eval_pdf(self, vp, tex, range) },
+                (SimdLevel::Avx2, true) => return unsafe { avx2_sample(self, vp, tex, range) },
+                (SimdLevel::Scalar, _) => {}
             }
         }
-        self.run::<f32>(vp, tex, range)
+        #[inline(never)]
+        fn scalar_eval_pdf(
+            a: VaryingArgs<'_, '_, f32>,
+            vp: &VaryingPaint,
+            t: &PaintTexture<f32>,
+            r: (usize, usize),
+        ) -> BatchReport {
+            a.run_eval_pdf::<f32>(vp, t, r)
+        }
+        #[inline(never)]
+        fn scalar_sample(
+            a: VaryingArgs<'_, '_, f32>,
+            vp: &VaryingPaint,
+            t: &PaintTexture<f32>,
+            r: (usize, usize),
+        ) -> BatchReport {
+            a.run_sample::<f32>(vp, t, r)
+        }
+        if sample {
+            scalar_sample(self, vp, tex, range)
+        } else {
+            scalar_eval_pdf(self, vp, tex, range)
+        }
     }
 }
 

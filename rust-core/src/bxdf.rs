@@ -117,7 +117,9 @@ pub trait LaneBxdf {
     /// [`LaneBxdf::eval_scaled_lanes`] restricted to the lobes of the lobe mask `lobes`
     /// ([`crate::lobes::bits`]: `DIFFUSE`, `GLOSSY`, `COAT`). Models that cannot separate
     /// their lobes keep this default (the full value): `Material::select_lobes` lets a mask
-    /// reach them only when it enables all of their lobes.
+    /// reach them only when it enables all of their lobes. With every selectable lobe
+    /// (`bits::SELECTABLE`) it must give `eval_scaled_lanes` bit for bit (the batch kernels
+    /// call it for both).
     #[inline(always)]
     fn eval_lobes_lanes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
         let _ = lobes;

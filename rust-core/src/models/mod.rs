@@ -488,6 +488,8 @@ pub trait LaneKernel: Sync {
     }
     /// [`LaneKernel::eval_scaled`] restricted to a lobe mask (see
     /// [`LaneBxdf::eval_lobes_lanes`]); kernels of models that do not separate lobes ignore it.
+    /// With every selectable lobe (`bits::SELECTABLE`) it is `eval_scaled`, bit for bit: the
+    /// batch kernels call it for both (a test, `a_mask_of_every_lobe_is_the_plain_call`).
     #[inline(always)]
     fn eval_lobes<L: Lanes>(&self, wi: Vec3<L>, wo: Vec3<L>, scale: [L; 2], lobes: u32) -> Rgb<L> {
         let _ = lobes;

@@ -311,6 +311,45 @@ fn joint_eval_pdf_equals_the_separate_calls() {
     assert!(batch::set_simd_level(SimdLevel::detect()));
 }
 
+/// A lobe mask of every selectable lobe gives exactly the plain call's values and densities,
+/// bit for bit, for every material and SIMD level, with and without an active mask: the batch
+/// kernels evaluate the lobe-masked and the sparkle-scaled calls through one model call
+/// (`LaneKernel::eval_lobes` with `bits::SELECTABLE` standing for "every lobe") and rely on
+/// this identity.
+#[test]
+fn a_mask_of_every_lobe_is_the_plain_call() {
+    use lacquer::lobes::{bits, LobeSelection};
+    let _turn = GLOBAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = 1037;
+    let (wi, wo) = directions(n, 23);
+    let (wi_f, wo_f): (Vec<f32>, Vec<f32>) =
+        (wi.iter().flatten().copied().collect(), wo.iter().flatten().copied().collect());
+    let active: Vec<u8> = (0..n).map(|i| u8::from(i % 13 != 5)).collect();
+    let bits_of = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for name in MATERIALS.iter().copied().chain([r#"{"preset": "gold_flake_8"}"#]) {
+        let m = &Material::from_json(name).unwrap();
+        for level in levels() {
+            assert!(batch::set_simd_level(level));
+            for active in [Some(&active[..]), None] {
+                let (wiv, wov) = (Src3::interleaved(&wi_f), Src3::interleaved(&wo_f));
+                let every = LobeSelection::Some(bits::SELECTABLE);
+                let (mut f_plain, mut p_plain) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+                let (mut f_mask, mut p_mask) = (vec![7.0f32; 3 * n], vec![7.0f32; n]);
+                batch::eval_pdf(m, &wiv, &wov, active, Some(&Dst3::interleaved(&mut f_plain)), None).unwrap();
+                batch::eval_pdf(m, &wiv, &wov, active, None, Some(&Dst1::new(&mut p_plain))).unwrap();
+                let f_view = Dst3::interleaved(&mut f_mask);
+                batch::eval_pdf_lobes(m, every, &wiv, &wov, active, Some(&f_view), None).unwrap();
+                batch::eval_pdf_lobes(m, every, &wiv, &wov, active, None, Some(&Dst1::new(&mut p_mask))).unwrap();
+                let masked = active.is_some();
+                assert_eq!(bits_of(&f_plain), bits_of(&f_mask), "{name} {level:?} masked {masked}: value");
+                assert_eq!(bits_of(&p_plain), bits_of(&p_mask), "{name} {level:?} masked {masked}: density");
+                assert!(f_plain.iter().any(|&f| f > 0.0), "{name} {level:?}: some value");
+            }
+        }
+    }
+    assert!(batch::set_simd_level(SimdLevel::detect()));
+}
+
 /// Results do not depend on the thread count (bit-identical), for a batch large enough to run
 /// in parallel.
 #[test]
