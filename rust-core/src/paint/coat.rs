@@ -155,13 +155,14 @@ pub(crate) fn inside_with_ratio<T: Lanes>(w: Vec3<T>, ratio: T) -> Vec3<T> {
 }
 
 /// The share of the rough interface's mean refraction shift that the metal base's first
-/// bounce takes ([`Coat::mean_refract_in`]): `sin θ' = sin θ/η + β (s̄ − sin θ/η)`, `s̄` the
-/// tangent-plane mean of the transmitted directions. Calibrated on the lossless reference
-/// (metal base α 0.05 under coats of α 0.01–0.3, θo 0°/40°/75°, 400 000 walks; §8 of
-/// docs/paint-validation.md, eighth pass): the worst lobe shapes were 7.0 / 6.7 / 6.5 / 6.5 /
-/// 6.8 % for β 0.5 / 0.6 / 0.7 / 0.8 / 1 (α 0.3, θo 75°) and 4.8 / 4.9 / 5.1 / 5.3 / 5.8 % at
-/// θo 40°; β = 1 darkens the first bounce by up to 15 % against the walk's.
-pub const MEAN_REFRACTION_SHARE: f64 = 0.6;
+/// bounce and its bounce series take ([`Coat::mean_refract_in`]): `sin θ' = sin θ/η + β (s̄ −
+/// sin θ/η)`, `s̄` the tangent-plane mean of the transmitted directions. Calibrated on the
+/// lossless reference (metal base α 0.05 under coats of α 0.01–0.3, θo 0°/40°/75°, 400 000
+/// walks; §8 of docs/paint-validation.md, ninth pass): with the series at the same map the
+/// worst whole-lobe shapes over the 15 cells were 5.4 / 4.5 / 4.8 / 6.6 / 8.9 % for β 0.4 /
+/// 0.5 / 0.6 / 0.8 / 1 (with the series at the macro refraction, session 37: 6.7 % at β 0.6);
+/// β = 1 darkens the first bounce by up to 15 % against the walk's.
+pub const MEAN_REFRACTION_SHARE: f64 = 0.5;
 
 /// The coat's factors at one outside cosine `μ`, per lane ([`Coat::at`]).
 #[derive(Clone, Copy, Debug)]

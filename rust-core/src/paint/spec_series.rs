@@ -19,7 +19,11 @@
 //! split into its two components, each with its own weight table: `w₁` for the `F0 = 1` part,
 //! `w₀` for the `(1 − c)⁵` part. So `S` is linear in `F0` and in `m` (the per-element tables
 //! of [`super::varying`] combine it as they combine the base's own lobes), symmetric in
-//! `(wi, wo)` (reciprocal), and non-negative.
+//! `(wi, wo)` (reciprocal), and non-negative. Under a rough coat `wi'`, `wo'` are the coat's
+//! mean refracted directions ([`Coat::mean_refract_in`], as for the metal's first bounce: the
+//! light of the last bounce leaves through the rough interface's tilted facets as the first
+//! bounce's enters; session 39), the blur and the weights still looked up at the macro
+//! refraction's and the outside cosines; otherwise the macro refraction.
 //!
 //! **The target** (per coat, built by [`SpecSeries::build`], 48 μ nodes): for each component
 //! `F` ∈ {1, (1 − c)⁵} of a unit metal (`m = 1`) under the coat, `R_F(μ)` is what the series
@@ -37,7 +41,10 @@
 //! the blurred pair's `min` had already thinned by up to 22 % at grazing view (§8 of
 //! docs/paint-validation.md, fifth pass).
 //!
-//! **The weights**: `A_F(μ)` is the albedo of the widened term with unit weights and
+//! **The weights**: `A_F(μ)` is the albedo of the widened term with unit weights (drawn at
+//! the node's inside direction; under a rough coat what the term sends along an inside
+//! direction leaves with `T/(η² J)` at the outside cosine of [`Coat::mean_refract_out`], the
+//! change of variables of the first bounce's `A1_F`, otherwise with `T`) and
 //! `w_F = σ_F R_F/A_F`. With the weights `√(w(μi) w(μo))` the term's albedo `S_F(μ)` is only
 //! close to `R_F(μ)`: fixed-point rounds `w ← w (R/S)²` settle the shape of `S_F/R_F`, and
 //! `σ_F` is the least-squares fit of `S_F` to `R_F` over the nodes, at most
@@ -98,6 +105,9 @@ pub struct SpecSeries {
     pub metal_alpha2: f64,
     /// The coat's `α_c²` (GGX).
     pub coat_alpha2: f64,
+    /// True when the lobe is evaluated at the coat's mean refracted directions
+    /// ([`Coat::mean_refract_in`], a rough coat), as the metal's first bounce is.
+    pub at_mean_refraction: bool,
 }
 
 /// What the series adds to the metal lobe's `α²` at a direction whose light takes `n` later
@@ -166,12 +176,26 @@ impl SpecSeries {
         let blur = coat.transmission_blur();
         let (metal_alpha2, coat_alpha2) = (metal_alpha * metal_alpha, coat.roughness * coat.roughness);
         let points: Vec<[f64; 3]> = (0..SAMPLES).map(|k| hammersley3(k, SAMPLES)).collect();
-        let escape = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| coat.transmittance(o.z));
-        let mu_out = |v: Vec3<f64>| coat.refract_out(v).map_or(0.0, |o| o.z);
+        let at_mean_refraction = coat.has_mean_refraction();
+        let eta2 = coat.ior * coat.ior;
+        let macro_in = |m: f64| coat.refract_in(Vec3::new((1.0 - m * m).max(0.0).sqrt(), 0.0, m));
+        // Where light the lobe sends along the inside direction `v` leaves: its outside cosine,
+        // the share that leaves, and the macro refraction's inside cosine there (at which the
+        // transmission blur is evaluated). At the mean refraction the share is `T/(η² J)`
+        // (`Coat::mean_refract_out`), at the macro normal `T`.
+        let exit = |v: Vec3<f64>| -> Option<(f64, f64, f64)> {
+            if at_mean_refraction {
+                let (mu, j) = coat.mean_refract_out(v.z).filter(|&(_, j)| v.z > 0.0 && j > 0.0)?;
+                Some((mu, coat.transmittance(mu) / (eta2 * j), macro_in(mu).z))
+            } else {
+                coat.refract_out(v).map(|o| (o.z, coat.transmittance(o.z), v.z))
+            }
+        };
         let nodes: Vec<(f64, Vec3<f64>)> = (0..NODES)
             .map(|k| {
                 let mu = (k as f64 / (NODES - 1) as f64).max(1e-4);
-                (mu, coat.refract_in(Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu)))
+                let outside = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                (mu, if at_mean_refraction { coat.mean_refract_in(outside) } else { coat.refract_in(outside) })
             })
             .collect();
         let mut weights = [vec![0.0; NODES], vec![0.0; NODES]];
@@ -222,7 +246,8 @@ impl SpecSeries {
                 }
                 for u in &points {
                     if let Some(b) = base.sample_by(w_in, *u, FlakeSampler::Visible) {
-                        a1 += t * b.weight[0] * escape(b.wi) / SAMPLES as f64;
+                        a1 += t * b.weight[0] * coat.refract_out(b.wi).map_or(0.0, |o| coat.transmittance(o.z))
+                            / SAMPLES as f64;
                     }
                 }
                 a1
@@ -252,9 +277,9 @@ impl SpecSeries {
             // What the lobe adds to the metal's α² seen from an inside direction: the
             // transmission blur and the widening for that direction's later bounces.
             let n_table = MuTable::from_values(n_eff.iter().map(|&n| [n, 0.0, 0.0]).collect());
-            let added = |v: Vec3<f64>| {
-                let n = n_table.eval::<f64>(mu_out(v))[0];
-                blur.map_or(0.0, |b| b.one_sided(v.z)) + series_widening(metal_alpha2, coat_alpha2, n)
+            let added = |mu_out: f64, macro_cos: f64| {
+                let n = n_table.eval::<f64>(mu_out)[0];
+                blur.map_or(0.0, |b| b.one_sided(macro_cos)) + series_widening(metal_alpha2, coat_alpha2, n)
             };
             // The term's albedo per node with the weights `w` (node values, interpolated in μ).
             // The lobe is linear in its pair weight `√(w(μi) w(μo))` (`n_eff` None), so each
@@ -266,7 +291,8 @@ impl SpecSeries {
                 if coat.transmittance(mu) <= 0.0 {
                     return Vec::new();
                 }
-                let wide = metal.blurred::<f64>(added(w_in));
+                let added_o = added(mu, macro_in(mu).z);
+                let wide = metal.blurred::<f64>(added_o);
                 points
                     .iter()
                     .filter_map(|u| {
@@ -275,9 +301,10 @@ impl SpecSeries {
                         if wi.z <= 0.0 || !(pdf > 0.0) {
                             return None;
                         }
-                        let added = (added(wi), added(w_in));
+                        let (mu_exit, escape, macro_cos) = exit(wi)?;
+                        let added = (added(mu_exit, macro_cos), added_o);
                         let f = series_lobe(&metal, Rgb::splat(f0), 1.0, added, wi, w_in, (1.0, 1.0), None);
-                        Some((mu_out(wi), f.r * wi.z / pdf * escape(wi)))
+                        Some((mu_exit, f.r * wi.z / pdf * escape))
                     })
                     .collect()
             });
@@ -331,6 +358,7 @@ impl SpecSeries {
             albedo: table(&albedo, &[0.0; NODES]),
             metal_alpha2,
             coat_alpha2,
+            at_mean_refraction,
         })
     }
 }

@@ -994,8 +994,15 @@ impl VaryingPaint {
             (Some(a), Some(o)) => (a + ei, o + eo),
             _ => (ei, eo),
         };
+        // At the mean refracted directions under a rough coat, as the first bounce
+        // (`CoatedPaint::spec_term`).
+        let (wi_lobe, wo_lobe) = if self.blur_ior.is_some() {
+            (self.mean_refract_in(e, wi), self.mean_refract_in(e, wo))
+        } else {
+            (wi_in, wo_in)
+        };
         let f0 = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
-        series_lobe(m, f0, e.metal_weight, added, wi_in, wo_in, w, Some(n_eff))
+        series_lobe(m, f0, e.metal_weight, added, wi_lobe, wo_lobe, w, Some(n_eff))
     }
 
     /// The bounce series' albedo at `wo` (channels' mean; 0 without it).
