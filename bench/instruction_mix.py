@@ -13,6 +13,12 @@ kernel_profile`) under valgrind's callgrind, counting only inside the batch kern
 or attributed to the innermost function (or source line) of this crate that the instruction
 was inlined from (`addr2line -i`; the lane types' own code is attributed to their caller).
 
+`--by function` and `--by line` need the core's line tables, which the release profile leaves
+out (Cargo.toml: `[profile.release.package.lacquer] debug = 0`, for the CI's memory): build
+the example with `cargo build --release -p lacquer --example kernel_profile --config
+'profile.release.package.lacquer.debug=1'` (the tool stops with this hint when the binary
+has none).
+
 valgrind has no AVX-512, so the count is the AVX2 path's (`LACQUER_SIMD=avx2`; the AVX-512
 kernels come from the same source, with 16 lanes, register-permute lookups instead of gathers
 and the conductor Fresnel fit). Needs valgrind, objdump and addr2line (binutils).
@@ -138,6 +144,10 @@ def main():
         only = set(args.only.split(",")) if args.only else None
         chosen = {a: c for a, c in counts.items() if only is None or mn.get(a) in only}
         labels = attribution(args.binary, chosen, args.by)
+        if chosen and all(label == "?" for label in labels.values()):
+            sys.exit(f"{args.binary} has no line tables for the core (release builds leave them out): "
+                     "cargo build --release -p lacquer --example kernel_profile "
+                     "--config 'profile.release.package.lacquer.debug=1'")
         tally = collections.Counter()
         for a, c in chosen.items():
             tally[labels.get(a, "?")] += c
