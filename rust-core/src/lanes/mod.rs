@@ -280,11 +280,32 @@ pub trait Lanes:
     fn c(x: f64) -> Self {
         Self::splat(Self::Elem::of(x))
     }
+    /// Runs `work` in a function of its own, out of line, compiled with this lane type's
+    /// target features (the SIMD types; the scalar ones run it in place). For a large term
+    /// that few materials have, inside a kernel that every material of the model shares:
+    /// inlined, its code crowds the kernel's register allocation for the materials that never
+    /// run it. A closure or an `#[inline(never)]` function would not do: either is compiled
+    /// without the kernel's target features, so its SIMD intrinsics become calls (session 39:
+    /// the metal base's bounce series ran the paint's AVX-512 eval at 98 ns per element as a
+    /// closure). [`Outlined::run`] is `#[inline(always)]`, so it is inlined into the
+    /// feature-enabled function.
+    #[inline(always)]
+    fn outlined<W: Outlined>(work: W) -> W::Output {
+        work.run()
+    }
     /// Applies a scalar function to each lane (for inherently scalar algorithms).
     #[inline(always)]
     fn map_lanes(self, mut f: impl FnMut(Self::Elem) -> Self::Elem) -> Self {
         Self::from_fn(|i| f(self.lane(i)))
     }
+}
+
+/// Work for [`Lanes::outlined`]: its inputs as fields, `run` marked `#[inline(always)]`.
+pub trait Outlined {
+    /// What `run` returns.
+    type Output;
+    /// Does the work.
+    fn run(self) -> Self::Output;
 }
 
 /// Every scalar [`Real`] is one lane: the reference (`f64`) and scalar fast (`f32`) paths.

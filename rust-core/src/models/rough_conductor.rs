@@ -213,10 +213,11 @@ impl RoughConductor {
         };
         let f = self.fresnel.eval(wo.z);
         let scale = Rgb::from_array(self.specular_reflectance);
-        // Rgb::average, written out for lanes.
-        let average = |c: Rgb<L>| (c.r + c.g + c.b) / L::c(3.0);
-        let ws = average(scale * f);
-        let wc = average(scale * Rgb::from_array(ms.f_ms)) * ms.loss_lanes(wo);
+        // Rgb::average, written out for lanes (no closure: it would be compiled without the
+        // kernel's target features, `math.rs`).
+        let (sf, sm) = (scale * f, scale * Rgb::from_array(ms.f_ms));
+        let ws = (sf.r + sf.g + sf.b) / L::c(3.0);
+        let wc = (sm.r + sm.g + sm.b) / L::c(3.0) * ms.loss_lanes(wo);
         let sum = ws + wc;
         lanes::select(lanes::gt(sum, L::c(0.0)), ws / sum, L::c(1.0))
     }

@@ -664,8 +664,7 @@ impl VaryingPaint {
             norm[ch] = lanes::select(lanes::gt(mbar, L::c(1e-12)), one / (L::c(std::f64::consts::PI) * mbar), zero);
         }
         // Basecoat lobe selection (as `Basecoat::new`, per element).
-        let mean = |x: [L; 3]| (x[0] + x[1] + x[2]) / L::c(3.0);
-        let rho_mean = mean(rho);
+        let rho_mean = (rho[0] + rho[1] + rho[2]) / L::c(3.0);
         let w_pig = rho_mean * (pigment_weight + cp * L::c(self.pearl_t_sel));
         let w_metal = if self.metal.is_some() { metal_weight * lanes::max(rho_mean, L::c(0.04)) } else { zero };
         let w_flakes = c * L::c(self.flake_nr[0]) + L::c(self.flake_nr[1]);
@@ -983,13 +982,17 @@ impl VaryingPaint {
         wo_in: Vec3<L>,
     ) -> Rgb<L> {
         let (mi, mo) = (mu_at(wi.z, NODES), mu_at(wo.z, NODES));
-        let pair = |t: &Flat| lanes::safe_sqrt(self.lookup(t, NODES, &e.at, &mi) * self.lookup(t, NODES, &e.at, &mo));
-        let w = (pair(&spec.weights[0]), pair(&spec.weights[1]));
+        let (w1, w0) = (&spec.weights[0], &spec.weights[1]);
+        let w = (
+            lanes::safe_sqrt(self.lookup(w1, NODES, &e.at, &mi) * self.lookup(w1, NODES, &e.at, &mo)),
+            lanes::safe_sqrt(self.lookup(w0, NODES, &e.at, &mi) * self.lookup(w0, NODES, &e.at, &mo)),
+        );
         let (n_i, n_o) =
             (self.lookup(&spec.weights[2], NODES, &e.at, &mi), self.lookup(&spec.weights[2], NODES, &e.at, &mo));
         let n_eff = (n_i + n_o) * L::c(0.5);
-        let widening = |n: L| series_widening(L::c(spec.metal_alpha2), e.alpha * e.alpha, n);
-        let (ei, eo) = (widening(n_i), widening(n_o));
+        let (metal_alpha2, coat_alpha2) = (L::c(spec.metal_alpha2), e.alpha * e.alpha);
+        let (ei, eo) =
+            (series_widening(metal_alpha2, coat_alpha2, n_i), series_widening(metal_alpha2, coat_alpha2, n_o));
         let added = match (self.blur_one_sided(e, wi_in.z), self.blur_one_sided(e, wo_in.z)) {
             (Some(a), Some(o)) => (a + ei, o + eo),
             _ => (ei, eo),
