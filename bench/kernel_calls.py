@@ -23,7 +23,7 @@ import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-KERNEL = re.compile(r"KernelVisitor>::visit::(avx2|avx512)_(eval_pdf|sample)")
+KERNEL = re.compile(r"KernelVisitor>::visit::(avx2|avx512)(_eval_pdf|_sample)?$")
 
 
 def main():
