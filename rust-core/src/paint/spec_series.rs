@@ -168,9 +168,9 @@ pub(crate) struct SeriesLobe<'a, L: Lanes> {
     pub weight: L,
     /// What is added to the metal's `α²` seen from `wi'`, `wo'`.
     pub added: (L, L),
-    /// The inside directions.
+    /// The inside direction toward the light (`wi'`).
     pub wi: Vec3<L>,
-    /// The inside directions.
+    /// The inside direction toward the viewer (`wo'`).
     pub wo: Vec3<L>,
     /// The pair's weights `√(w(μi) w(μo))`.
     pub w: (L, L),
