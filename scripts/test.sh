@@ -127,6 +127,18 @@ done
 step "bench/vs_mitsuba.py --quick (Lacquer C ABI vs Mitsuba 3 built-ins, smoke)"
 python3 bench/vs_mitsuba.py --quick >/dev/null
 
+# The SIMD batch kernels of the shipped library must not call SIMD intrinsics out of line (a
+# closure or helper compiled without the kernel's `#[target_feature]`: session 39 found one that
+# made every metal-base paint 4-7x slower). Reads the machine code, about 15 s; x86-64 only
+# (the kernels it checks are the AVX2/AVX-512 ones).
+step "bench/kernel_calls.py (no SIMD intrinsic called out of line from the batch kernels)"
+if [ "$(uname -m)" = x86_64 ]; then
+  cargo build --release -q -p lacquer-capi
+  python3 bench/kernel_calls.py
+else
+  echo "not run on $(uname -m): the AVX2/AVX-512 kernels it checks exist on x86-64 only"
+fi
+
 step "c-api/test.sh --skip-rust (its Rust tests ran in cargo test --workspace)"
 bash c-api/test.sh --skip-rust
 step "mitsuba-plugin/test.sh"
