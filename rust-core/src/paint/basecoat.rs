@@ -136,16 +136,16 @@ impl BaseParts {
 }
 
 /// What the basecoat's value and its density share at one pair of inside directions, per
-/// lane ([`Basecoat::pair`]): the half vector, the transmission blur at both directions, and
-/// the flakes' `D(h)` for the distribution seen from `wo` (the value's and the projected-area
-/// density's).
+/// lane ([`Basecoat::pair`]): the half vector, the transmission blur at both directions (the
+/// metal base's), and the flakes' `D(h)` (the value's and the projected-area density's).
 #[derive(Clone, Copy, Debug)]
 pub struct BasePair<T: Lanes> {
     /// The directions and their half vector.
     pub half: HalfPair<T>,
     /// The blur's added `α²` at `wi` and at `wo` (None without the blur).
     added: Option<(T, T)>,
-    /// `D(h)` of the flakes' distribution blurred at `wo` (0 without flakes).
+    /// `D(h)` of the flakes' distribution (0 without flakes; the flakes take no transmission
+    /// blur, [`super::coat::FLAKE_MEAN_REFRACTION_SHARE`]).
     flake_d: T,
 }
 
@@ -167,7 +167,7 @@ pub struct Basecoat {
     /// The pigment's rough-diffuse lobe: EON (energy-preserving Oren-Nayar, albedo ρ) in place
     /// of Lambert's `ρ/π` (None: Lambert). Set by [`Basecoat::with_rough_pigment`].
     pub rough_pigment: Option<Eon>,
-    /// The rough coat's blur of the specular lobes (metal base, flakes): None for the basecoat
+    /// The rough coat's blur of the metal base's lobe (the flakes take none): None for the basecoat
     /// as it is (under a smooth coat; the reference's walks). Set by [`Basecoat::with_blur`].
     pub blur: Option<TransmissionBlur>,
     /// Lobe-selection weights: pigment, metal, flakes.
@@ -222,8 +222,10 @@ impl Basecoat {
     }
 
     /// The same basecoat seen through a coat with transmission blur `blur` (None: as it is).
-    /// The pigment is unchanged (a diffuse lobe stays diffuse); the metal base's and the
-    /// flakes' lobes are blurred as [`TransmissionBlur`] describes.
+    /// The pigment is unchanged (a diffuse lobe stays diffuse); the metal base's lobe is
+    /// blurred as [`TransmissionBlur`] describes. The flakes' broad lobe takes no blur: under a
+    /// rough coat the paint evaluates it at a share of the mean refraction instead
+    /// ([`super::coat::FLAKE_MEAN_REFRACTION_SHARE`]).
     #[must_use]
     pub fn with_blur(mut self, blur: Option<TransmissionBlur>) -> Self {
         self.blur = blur;
@@ -272,12 +274,12 @@ impl Basecoat {
     }
 
     /// The transmission blur's added `α²` for an inside direction with cosine `mu_in`
-    /// ([`TransmissionBlur::one_sided`]; None without the blur, or without a glossy lobe for
-    /// it to widen: a pigment-only basecoat does not pay for it).
+    /// ([`TransmissionBlur::one_sided`]; None without the blur, or without a metal base for
+    /// it to widen: a pigment or flake basecoat does not pay for it).
     #[inline(always)]
     #[must_use]
     pub fn blur_added<T: Lanes>(&self, mu_in: T) -> Option<T> {
-        self.blur.filter(|_| self.has_glossy()).map(|b| b.one_sided(mu_in))
+        self.blur.filter(|_| self.metal.is_some()).map(|b| b.one_sided(mu_in))
     }
 
     /// What the value and the density share at `wi`, `wo` ([`BasePair`]).
@@ -301,10 +303,9 @@ impl Basecoat {
             (Some(b), Some(o)) => Some((b.one_sided(wi.z), o)),
             _ => None,
         };
-        let flake_d = match (&self.flakes, added) {
-            (None, _) => T::c(0.0),
-            (Some(f), None) => f.microfacet::<T>().d(half.h),
-            (Some(f), Some((_, o))) => f.blurred(o).d(half.h),
+        let flake_d = match &self.flakes {
+            None => T::c(0.0),
+            Some(f) => f.microfacet::<T>().d(half.h),
         };
         BasePair { half, added, flake_d }
     }
@@ -326,8 +327,7 @@ impl Basecoat {
         f
     }
 
-    /// The flakes' lobe alone (0 without flakes), blurred as in [`Basecoat::eval_parts`],
-    /// with the flake populations scaled by `metal_scale` and `pearl_scale`.
+    /// The flakes' lobe alone (0 without flakes), with the flake populations scaled by `metal_scale` and `pearl_scale`.
     #[inline(always)]
     #[must_use]
     pub fn flakes_eval<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
@@ -339,13 +339,7 @@ impl Basecoat {
     #[must_use]
     pub fn flakes_eval_pair<T: Lanes>(&self, p: &BasePair<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
         let Some(fl) = &self.flakes else { return Rgb::zero() };
-        match p.added {
-            None => fl.eval_scaled_h(&fl.microfacet::<T>(), p.flake_d, None, &p.half, metal_scale, pearl_scale),
-            Some((ai, ao)) => {
-                let (a, o) = (fl.blurred(ai), fl.blurred(ao));
-                fl.eval_scaled_h(&o, p.flake_d, Some(&a), &p.half, metal_scale, pearl_scale)
-            }
-        }
+        fl.eval_scaled_h(&fl.microfacet::<T>(), p.flake_d, &p.half, metal_scale, pearl_scale)
     }
 
     /// The metallic base's lobe alone (0 without one), blurred as in [`Basecoat::eval_parts`].
@@ -451,10 +445,7 @@ impl Basecoat {
         if let Some(f) = self.flakes.as_ref().filter(|_| parts.glossy) {
             p += c * match sampler {
                 FlakeSampler::Projected => FlakeLayer::projected_pdf_h(pair.flake_d, half),
-                FlakeSampler::Visible => match pair.added {
-                    None => FlakeLayer::visible_pdf_h(&f.microfacet::<T>(), half),
-                    Some((_, o)) => FlakeLayer::visible_pdf_h(&f.blurred(o), half),
-                },
+                FlakeSampler::Visible => FlakeLayer::visible_pdf_h(&f.microfacet::<T>(), half),
             };
         }
         lanes::div_fast(p, total)
@@ -534,10 +525,8 @@ impl Basecoat {
             wi = Vec3::select(metal, w, wi);
         }
         if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
-            let w = match added {
-                None => FlakeLayer::sample_direction_by(f.microfacet::<T>(), wo, u[1], u[2], flake, sampler),
-                Some(a) => FlakeLayer::sample_direction_by(f.blurred(a), wo, u[1], u[2], flake, sampler),
-            };
+            // The flakes take no transmission blur ([`super::coat::FLAKE_MEAN_REFRACTION_SHARE`]).
+            let w = FlakeLayer::sample_direction_by(f.microfacet::<T>(), wo, u[1], u[2], flake, sampler);
             wi = Vec3::select(flake, w, wi);
         }
         (wi, pick.valid)

@@ -164,6 +164,34 @@ pub(crate) fn inside_with_ratio<T: Lanes>(w: Vec3<T>, ratio: T) -> Vec3<T> {
 /// β = 1 darkens the first bounce by up to 15 % against the walk's.
 pub const MEAN_REFRACTION_SHARE: f64 = 0.5;
 
+/// The share of the rough interface's mean refraction shift that the flakes' lobe takes
+/// ([`Coat::flake_refract_in`]), in place of a share of the transmission blur (which the
+/// flakes no longer take). The flakes' Beckmann lobe (α ≈ 0.2) is broad next to the coat's
+/// blur; what the rough interface changes for it is where light crosses: at the mean
+/// refraction the lobe's outside solid angle shrinks (`J`, [`Coat::mean_refract_out`]), most
+/// at normal view, where the blurred model's first bounce was too bright. Calibrated against
+/// the lossless reference (Al flakes 8 % under coats of α 0.1–0.3, θo 0°/40°/75°;
+/// docs/paint-validation.md §8, tenth pass). The scan (a throwaway build with the shares from
+/// the environment, the layer tables as before; largest albedo error over the 15 cells):
+/// 1.92 / 1.82 / 2.05 % for shares 0.1 / 0.15 / 0.2 without blur (1 600 000 walks); share
+/// 0.15 with the flakes' blur share 0 / 0.1 / 0.25: 1.90 / 2.22 / 2.64 %, shares 0.5 and 1
+/// without blur: 3.99 / 5.80 % (400 000 walks); session 23's blur share 0.25 at the macro
+/// refraction: 2.09 %. Kept, with `A1` and `M` following the map: 1.79 ± 0.20 % (α 0.3, θo
+/// 75°; 1 600 000 walks), and the body lobe at θo 75°, α 0.3: 11.0 % (was 16.8 %).
+pub const FLAKE_MEAN_REFRACTION_SHARE: f64 = 0.15;
+
+/// `sin θ'/sin θ` of the flakes' map ([`Coat::flake_refract_in`]) from the metal's
+/// ([`Coat::mean_refract_in`], share [`MEAN_REFRACTION_SHARE`]) for a coat of index `ior`:
+/// both maps are the macro refraction plus their share of the same shift, so the flakes' is
+/// `1/η + (β_f/β)(r − 1/η)` (below the metal's where that is above the macro refraction,
+/// so within the metal map's range).
+#[inline(always)]
+#[must_use]
+pub(crate) fn flake_ratio_from_mean<T: Lanes>(ior: f64, mean_ratio: T) -> T {
+    let macro_ratio = T::c(1.0 / ior);
+    macro_ratio + (mean_ratio - macro_ratio) * T::c(FLAKE_MEAN_REFRACTION_SHARE / MEAN_REFRACTION_SHARE)
+}
+
 /// The coat's factors at one outside cosine `μ`, per lane ([`Coat::at`]).
 #[derive(Clone, Copy, Debug)]
 pub struct CoatAt<T> {
@@ -429,6 +457,20 @@ impl Coat {
         match &self.mean_refraction {
             None => self.refract_in(w),
             Some(t) => inside_with_ratio(w, t.eval_lanes(w.z)[0]),
+        }
+    }
+
+    /// The inside direction at which the flakes' lobe sees light from (or sends it to) the
+    /// outside direction `w` through a rough interface: the macro refraction moved by the share
+    /// [`FLAKE_MEAN_REFRACTION_SHARE`] toward the mean refracted direction (as
+    /// [`Coat::mean_refract_in`] with its own share); [`Coat::refract_in`] for a smooth coat.
+    /// The same map for both directions keeps the lobe reciprocal.
+    #[inline(always)]
+    #[must_use]
+    pub fn flake_refract_in<T: Lanes>(&self, w: Vec3<T>) -> Vec3<T> {
+        match &self.mean_refraction {
+            None => self.refract_in(w),
+            Some(t) => inside_with_ratio(w, flake_ratio_from_mean(self.ior, t.eval_lanes(w.z)[0])),
         }
     }
 

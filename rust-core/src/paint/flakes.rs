@@ -16,18 +16,6 @@ use crate::microfacet::{reflection_jacobian, DistributionKind, MaskingKind, Micr
 use crate::real::Real;
 use crate::table::MuTable;
 
-/// The share of the coat's transmission blur ([`super::coat::TransmissionBlur`], calibrated
-/// on a sharp metal base) that the flakes' broad orientation lobe takes: `α_eff² = α_f² +
-/// 0.25 · 2c α_c² q(μ')`. The blurred pair's `min` loses energy wherever the two directions'
-/// blurs differ, and the flakes' lobe (Beckmann α ≈ 0.2) is wide enough for that loss to
-/// outweigh the widening; calibrated against the lossless reference (Al flakes 8 % under
-/// coats of α 0.1–0.3, θo 0°/40°/75°, `docs/paint-validation.md` §8): shares 0, 0.15, 0.25,
-/// 0.35, 0.5, 1 (400 000 walks for 0.15–0.35, 200 000 for the others; scanned with the
-/// constant slope-variance factor 1.75 that `coat::ggx_slope_variance` replaced) give a
-/// largest albedo error of 2.8, 2.3, 2.1, 2.3, 3.0, 3.8 % and, at θo 75°, α 0.3, a body-lobe
-/// error of 12.9, 15.0, 16.8, 18.5, 21.1, 28.4 %.
-pub const FLAKE_BLUR_SHARE: f64 = 0.25;
-
 /// Flake populations sharing one orientation distribution.
 #[derive(Clone, Debug)]
 pub struct FlakeLayer {
@@ -61,16 +49,6 @@ impl FlakeLayer {
     #[inline(always)]
     pub(crate) fn microfacet<T: Lanes>(&self) -> Microfacet<T> {
         Microfacet::uniform(DistributionKind::Beckmann, self.alpha, self.alpha)
-    }
-
-    /// The Beckmann distribution seen through a rough coat whose blur adds `added` (per lane,
-    /// [`super::coat::TransmissionBlur::one_sided`]) to a sharp lobe's `α²`: the flakes take
-    /// the share [`FLAKE_BLUR_SHARE`] of it.
-    #[inline(always)]
-    #[must_use]
-    pub fn blurred<T: Lanes>(&self, added: T) -> Microfacet<T> {
-        let a = lanes::sqrt_fast(T::c(self.alpha * self.alpha) + added * T::c(FLAKE_BLUR_SHARE));
-        Microfacet::new(DistributionKind::Beckmann, a, a)
     }
 
     /// Reflectance of the metallic population at incidence `cos` on a flake.
@@ -112,28 +90,11 @@ impl FlakeLayer {
     #[inline(always)]
     #[must_use]
     pub fn eval_scaled<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, metal_scale: T, pearl_scale: T) -> Rgb<T> {
-        self.eval_scaled_with(&self.microfacet::<T>(), None, wi, wo, metal_scale, pearl_scale)
+        let (mf, pair) = (self.microfacet::<T>(), HalfPair::new(wi, wo));
+        self.eval_scaled_h(&mf, mf.d(pair.h), &pair, metal_scale, pearl_scale)
     }
 
-    /// [`FlakeLayer::eval_scaled`] with the normal distribution `mf`, or under a rough coat
-    /// with `other` the smaller of the two lobes' `D G` (the blurred lobes seen from `wo` and
-    /// from `wi`, [`super::coat::TransmissionBlur`]).
-    #[inline(always)]
-    #[must_use]
-    pub fn eval_scaled_with<T: Lanes>(
-        &self,
-        mf: &Microfacet<T>,
-        other: Option<&Microfacet<T>>,
-        wi: Vec3<T>,
-        wo: Vec3<T>,
-        metal_scale: T,
-        pearl_scale: T,
-    ) -> Rgb<T> {
-        let pair = HalfPair::new(wi, wo);
-        self.eval_scaled_h(mf, mf.d(pair.h), other, &pair, metal_scale, pearl_scale)
-    }
-
-    /// [`FlakeLayer::eval_scaled_with`] of a pair whose half vector is known, with `d` the
+    /// [`FlakeLayer::eval_scaled`] of a pair whose half vector is known, with `d` the
     /// distribution `mf`'s `D(h)` (which the projected-area density shares,
     /// [`FlakeLayer::projected_pdf_h`]).
     #[inline(always)]
@@ -142,22 +103,14 @@ impl FlakeLayer {
         &self,
         mf: &Microfacet<T>,
         d: T,
-        other: Option<&Microfacet<T>>,
         pair: &HalfPair<T>,
         metal_scale: T,
         pearl_scale: T,
     ) -> Rgb<T> {
         let HalfPair { wi, wo, h, defined } = *pair;
         let g = mf.g(wi, wo, h, MaskingKind::HeightCorrelated);
-        let (dg, ok) = match other {
-            None => (d * g, lanes::gt(g, T::c(0.0))),
-            Some(b) => {
-                let dg = lanes::min(d * g, b.d(h) * b.g(wi, wo, h, MaskingKind::HeightCorrelated));
-                (dg, lanes::gt(dg, T::c(0.0)))
-            }
-        };
-        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * lanes::div_fast(dg, T::c(4.0) * wi.z * wo.z);
-        Rgb::select(defined & ok, f, Rgb::zero())
+        let f = self.reflectance(wi.dot(h), metal_scale, pearl_scale) * lanes::div_fast(d * g, T::c(4.0) * wi.z * wo.z);
+        Rgb::select(defined & lanes::gt(g, T::c(0.0)), f, Rgb::zero())
     }
 
     /// The mean (footprint → ∞) flake lobe.

@@ -31,7 +31,7 @@
 //! counted in [`crate::batch::BatchReport`]); they are never clamped and never give NaN.
 
 use super::basecoat::{BaseParts, Basecoat, MetalBase};
-use super::coat::{inside_with_ratio, ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
+use super::coat::{flake_ratio_from_mean, inside_with_ratio, ms_azimuthal, ms_pdf, ms_sample, Coat, TransmissionBlur};
 use super::coated_paint::CoatedPaint;
 use super::flakes::{FlakeLayer, FlakeSampler};
 use super::pick3;
@@ -851,8 +851,8 @@ impl VaryingPaint {
             }
         };
         let mut f = pigment;
-        let (at_i, at_o) = (self.blur_one_sided(e, wi.z), self.blur_one_sided(e, wo.z));
         if let Some(m) = &self.metal {
+            let (at_i, at_o) = (self.blur_one_sided(e, wi.z), self.blur_one_sided(e, wo.z));
             let rho = Rgb::new(e.rho[0], e.rho[1], e.rho[2]);
             // The first bounce at the mean refracted directions under a rough coat (the blur
             // at the macro refraction's cosines), as `CoatedPaint`'s.
@@ -867,11 +867,13 @@ impl VaryingPaint {
         let mut flakes = Rgb::zero();
         if let Some(fl) = &self.flakes {
             if self.pearl_c > 0.0 || lanes::gt(e.c, L::c(0.0)).any() {
-                flakes = match (at_i, at_o) {
-                    (Some(a), Some(o)) => {
-                        fl.eval_scaled_with(&fl.blurred(o), Some(&fl.blurred(a)), wi, wo, e.c, L::c(1.0))
-                    }
-                    _ => fl.eval_scaled(wi, wo, e.c, L::c(1.0)),
+                // Under a rough coat at the flakes' map of the outside directions, without
+                // blur (`Coat::flake_refract_in`), as `CoatedPaint`'s.
+                flakes = if self.blur_ior.is_some() {
+                    let (fi, fo) = (self.flake_refract_in(e, outside.0), self.flake_refract_in(e, outside.1));
+                    fl.eval_scaled(fi, fo, e.c, L::c(1.0))
+                } else {
+                    fl.eval_scaled(wi, wo, e.c, L::c(1.0))
                 };
             }
         }
@@ -886,6 +888,17 @@ impl VaryingPaint {
             return self.coat.mean_refract_in(w);
         }
         inside_with_ratio(w, self.lookup(&self.mean_refraction_top, E_NODES, &e.at, &mu_at(w.z, E_NODES)))
+    }
+
+    /// The inside direction of the flakes' lobe for the outside direction `w`
+    /// ([`Coat::flake_refract_in`] of the element's coat).
+    #[inline(always)]
+    fn flake_refract_in<L: Lanes>(&self, e: &Element<L>, w: Vec3<L>) -> Vec3<L> {
+        if !self.varies_alpha() {
+            return self.coat.flake_refract_in(w);
+        }
+        let mean = self.lookup(&self.mean_refraction_top, E_NODES, &e.at, &mu_at(w.z, E_NODES));
+        inside_with_ratio(w, flake_ratio_from_mean(self.coat.ior, mean))
     }
 
     /// What the transmission blur adds to the base lobes' `α²` seen from an inside direction
@@ -908,8 +921,7 @@ impl VaryingPaint {
         if let Some(f) = &self.flakes {
             let on = lanes::gt(c, L::c(0.0));
             if on.any() {
-                let pf = added.map_or_else(|| f.pdf(wi, wo), |a| FlakeLayer::pdf_with(&f.blurred(a), wi, wo));
-                p += keep(on, c * pf);
+                p += keep(on, c * f.pdf(wi, wo));
             }
         }
         keep(lanes::gt(total, L::c(0.0)), p / total)
@@ -933,11 +945,7 @@ impl VaryingPaint {
             wi = Vec3::select(metal, w, wi);
         }
         if let Some(f) = self.flakes.as_ref().filter(|_| flake.any()) {
-            let w = match added {
-                None => f.sample_direction_masked(wo, u[1], u[2], flake),
-                Some(a) => FlakeLayer::sample_direction_with(f.blurred(a), wo, u[1], u[2], flake),
-            };
-            wi = Vec3::select(flake, w, wi);
+            wi = Vec3::select(flake, f.sample_direction_masked(wo, u[1], u[2], flake), wi);
         }
         (wi, pick.valid)
     }
@@ -1344,10 +1352,23 @@ fn component_tables(coats: &[Coat], group: &[&Basecoat]) -> Vec<ComponentTables>
                             }
                             if let Some(v) = exit {
                                 // The flakes leave with the crossing factor, the pigment and
-                                // the metal base with `T` (`Coat::crossing`).
-                                let esc = if flakes { coats[j].crossing(v.z) } else { coats[j].transmittance(v.z) };
+                                // the metal base with `T` (`Coat::crossing`); under a rough
+                                // coat the flakes' first bounce is their lobe at their map of
+                                // the outside directions (`Coat::flake_refract_in`; the change
+                                // of variables of `coated_paint::base_sample_terms`).
+                                let cj = &coats[j];
+                                let (esc, sent) = if flakes {
+                                    let sent = if cj.has_crossing() {
+                                        member[b].eval(cj.flake_refract_in(v), cj.flake_refract_in(w)) * (wi.z / pdf)
+                                    } else {
+                                        s.weight
+                                    };
+                                    (cj.crossing(v.z), sent)
+                                } else {
+                                    (cj.transmittance(v.z), s.weight)
+                                };
                                 for c in 0..3 {
-                                    out[c] += s.weight[c] * a_v[c] * esc;
+                                    out[c] += sent[c] * a_v[c] * esc;
                                 }
                             }
                         }

@@ -9,6 +9,7 @@ mod all_models;
 mod batch;
 mod fuzz_regressions;
 mod golden;
+mod rough_coat_flakes;
 mod shared_lobes;
 mod varying;
 
