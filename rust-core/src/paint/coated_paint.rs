@@ -1789,13 +1789,44 @@ mod tests {
     /// 0.992 at α 0.3, 0.965 / 0.968 / 0.972 / 0.986 at α 0.5). ≈ 4 s in release.
     #[test]
     fn metal_first_bounce_at_the_mean_refraction_conserves_energy() {
+        albedo_stays_at_most_one(
+            |alpha| {
+                format!(
+                    r#"{{"model": "coated_paint", "coat_roughness": {alpha}, "flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": 1}}"#
+                )
+            },
+            0xe4e,
+        );
+    }
+
+    /// Issue 17, item 3 (tenth pass): the flakes' map changes the solid angle their first
+    /// bounce leaves into (`J` of [`Coat::mean_refract_out`]); `A1` follows it
+    /// (`base_sample_terms`' `flake_out_share`) and what the map keeps in goes to `M`. A nearly
+    /// lossless stack (white pigment, 20 % Al flakes) under coats of α 0.1 / 0.3 / 0.5 reflects
+    /// at most what arrives (sampled albedo ≤ 1 + 4σ at θo 87° / 75° / 53° / 0°; measured,
+    /// session 40: 0.957 / 0.950 / 0.943 / 0.949 at α 0.1, 0.949 / 0.945 / 0.944 / 0.946 at α
+    /// 0.3, 0.945 / 0.943 / 0.941 / 0.946 at α 0.5). ≈ 4 s in release.
+    #[test]
+    fn flakes_at_the_mean_refraction_conserve_energy() {
+        albedo_stays_at_most_one(
+            |alpha| {
+                format!(
+                    r#"{{"model": "coated_paint", "coat_roughness": {alpha}, "flake_density": 20, "base_color": 1, "sparkle": false}}"#
+                )
+            },
+            0xe4f,
+        );
+    }
+
+    /// Asserts that the paint `json(α)` for coats of α 0.1 / 0.3 / 0.5 reflects at most what
+    /// arrives: its albedo from 100 000 samples of its own sampler (luminance of the weights
+    /// `f cos/pdf`) at `cos θo` 0.05 / 0.26 / 0.6 / 1 is at most 1 + 4σ (printed).
+    fn albedo_stays_at_most_one(json: impl Fn(f64) -> String, seed: u64) {
         for alpha in [0.1, 0.3, 0.5] {
-            let p = paint(&format!(
-                r#"{{"model": "coated_paint", "coat_roughness": {alpha}, "flake_density": 0, "base_metallic": 1, "base_roughness": 0.05, "base_color": 1}}"#
-            ));
+            let p = paint(&json(alpha));
             for mu in [0.05, 0.26, 0.6, 1.0] {
                 let wo = Vec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
-                let mut rng = crate::rng::Pcg32::new(0xe4e, (alpha * 100.0 + mu * 10.0) as u64);
+                let mut rng = crate::rng::Pcg32::new(seed, (alpha * 100.0 + mu * 10.0) as u64);
                 let n = 100_000;
                 let (mut sum, mut sum2) = (0.0, 0.0);
                 for _ in 0..n {
