@@ -133,7 +133,9 @@ python3 bench/vs_mitsuba.py --quick >/dev/null
 # (the kernels it checks are the AVX2/AVX-512 ones).
 step "bench/kernel_calls.py (no SIMD intrinsic called out of line from the batch kernels)"
 if [ "$(uname -m)" = x86_64 ]; then
-  cargo build --release -q -p lacquer-capi
+  # With the CLI, as everywhere here: lacquer-capi alone resolves fewer dependency features and
+  # rebuilds the core (450 s in session 40's first CI run with it); with it, only a link.
+  cargo build --release -q -p lacquer-capi -p lacquer-cli
   python3 bench/kernel_calls.py
 else
   echo "not run on $(uname -m): the AVX2/AVX-512 kernels it checks exist on x86-64 only"
