@@ -144,8 +144,9 @@ pub struct BasePair<T: Lanes> {
     pub half: HalfPair<T>,
     /// The blur's added `α²` at `wi` and at `wo` (None without the blur).
     added: Option<(T, T)>,
-    /// `D(h)` of the flakes' distribution (0 without flakes; the flakes take no transmission
-    /// blur, [`super::coat::FLAKE_MEAN_REFRACTION_SHARE`]).
+    /// `D(h)` of the flakes' distribution (0 without flakes, or where the caller asked for
+    /// the directions alone, [`Basecoat::pair_at`]; the flakes take no transmission blur,
+    /// [`super::coat::FLAKE_MEAN_REFRACTION_SHARE`]).
     flake_d: T,
 }
 
@@ -286,15 +287,26 @@ impl Basecoat {
     #[inline(always)]
     #[must_use]
     pub fn pair<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>) -> BasePair<T> {
-        self.pair_at(wi, wo, self.blur_added(wo.z))
+        self.pair_at(wi, wo, self.blur_added(wo.z), true)
     }
 
     /// [`Basecoat::pair`] with the blur at `wo` already known: `added_o` must be
-    /// [`Basecoat::blur_added`]`(wo.z)` (the sampler computes it too).
+    /// [`Basecoat::blur_added`]`(wo.z)` (the sampler computes it too). `glossy_read` false
+    /// gives the directions alone, as for a pigment-only basecoat, to a caller that reads
+    /// no glossy lobe at this pair: the paint's value under a rough coat, which reads its
+    /// flakes at their own pair ([`super::coat::Coat::flake_refract_in`]) and has no metal
+    /// base. There the half vector and the flakes' `D` cost 5 % of `gold_flake_8`'s AVX-512
+    /// eval for nothing (session 41).
     #[inline(always)]
     #[must_use]
-    pub(crate) fn pair_at<T: Lanes>(&self, wi: Vec3<T>, wo: Vec3<T>, added_o: Option<T>) -> BasePair<T> {
-        if !self.has_glossy() {
+    pub(crate) fn pair_at<T: Lanes>(
+        &self,
+        wi: Vec3<T>,
+        wo: Vec3<T>,
+        added_o: Option<T>,
+        glossy_read: bool,
+    ) -> BasePair<T> {
+        if !self.has_glossy() || !glossy_read {
             // The pigment alone reads the two directions, not their half vector nor the blur.
             return BasePair { half: HalfPair::without_half(wi, wo), added: None, flake_d: T::c(0.0) };
         }

@@ -600,6 +600,29 @@ impl CoatedPaint {
     /// What the value and the density share at `wi` and the `wo` of `o` ([`AtPair`]).
     #[inline(always)]
     fn at_pair<T: Lanes>(&self, wi: Vec3<T>, o: &AtWo<T>) -> AtPair<T> {
+        self.at_pair_with(wi, o, true)
+    }
+
+    /// [`Self::at_pair`] for the value alone: under a rough coat the value reads the flakes at
+    /// their own map of the directions ([`Coat::flake_refract_in`]), so without a metal base
+    /// it reads no glossy lobe at the basecoat pair, whose half vector and flake `D` only the
+    /// density needs ([`Basecoat::pair_at`]).
+    #[inline(always)]
+    fn at_pair_for_value<T: Lanes>(&self, wi: Vec3<T>, o: &AtWo<T>) -> AtPair<T> {
+        self.at_pair_with(wi, o, !self.flakes_at_their_map() || self.base.metal.is_some())
+    }
+
+    /// True when the value reads the flakes at [`Coat::flake_refract_in`]'s pair rather than
+    /// at the basecoat pair (a rough coat with flakes: [`Self::layer_term`]).
+    #[inline(always)]
+    fn flakes_at_their_map(&self) -> bool {
+        self.coat.has_crossing() && self.base.flakes.is_some()
+    }
+
+    /// [`Self::at_pair`], with the basecoat pair's glossy terms only if `glossy_read`
+    /// ([`Basecoat::pair_at`]).
+    #[inline(always)]
+    fn at_pair_with<T: Lanes>(&self, wi: Vec3<T>, o: &AtWo<T>, glossy_read: bool) -> AtPair<T> {
         let wi_in = self.coat.refract_in(wi);
         let top = HalfPair::new(wi, o.wo);
         AtPair {
@@ -609,7 +632,7 @@ impl CoatedPaint {
             coat: self.coat.at(wi.z),
             multiple: self.multiple.eval_lanes(wi.z),
             ms_azimuthal: if self.coat.multiple_scattering().is_some() { ms_azimuthal(wi, o.wo) } else { T::c(0.0) },
-            base: self.base.pair_at(wi_in, o.wo_in, o.blur),
+            base: self.base.pair_at(wi_in, o.wo_in, o.blur, glossy_read),
         }
     }
 
@@ -636,7 +659,7 @@ impl CoatedPaint {
         let crosses = lanes::gt(ti, T::c(0.0)) & lanes::gt(to, T::c(0.0));
         let (wi_in, wo_in) = (p.wi_in, o.wo_in);
         let inv_eta2 = T::c(1.0 / (self.coat.ior * self.coat.ior));
-        let mut f = if self.coat.has_crossing() && self.base.flakes.is_some() {
+        let mut f = if self.flakes_at_their_map() {
             // A rough coat: the flakes cross with `g(μi) g(μo)`, the pigment and the metal
             // base with `T(μi) T(μo)` (`Coat::crossing`); the flakes' lobe is evaluated at
             // their own map of the directions below.
@@ -786,7 +809,7 @@ impl CoatedPaint {
         parts: PaintParts,
     ) -> Rgb<T> {
         let o = self.at_wo(wo, parts);
-        self.eval_pair(&self.at_pair(wi, &o), &o, metal_scale, pearl_scale, parts)
+        self.eval_pair(&self.at_pair_for_value(wi, &o), &o, metal_scale, pearl_scale, parts)
     }
 
     /// [`CoatedPaint::eval_parts`] at a pair of directions whose shared terms are known.
