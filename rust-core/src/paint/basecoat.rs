@@ -505,13 +505,16 @@ impl Basecoat {
         parts: BaseParts,
         sampler: FlakeSampler,
     ) -> (Vec3<T>, T::Mask) {
-        self.sample_direction_at(wo, u, active, parts, sampler, self.blur_added(wo.z))
+        self.sample_direction_at(wo, u, active, parts, sampler, self.blur_added(wo.z), None)
     }
 
     /// [`Basecoat::sample_direction_parts_by`] with the blur at `wo` already known: `added`
-    /// must be [`Basecoat::blur_added`]`(wo.z)`.
+    /// must be [`Basecoat::blur_added`]`(wo.z)`; `cosine`, if given, must be
+    /// `cosine_hemisphere(u[1], u[2])` (a caller that draws it for a lobe of its own passes it
+    /// on rather than drawing it twice).
     #[inline(always)]
     #[must_use]
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn sample_direction_at<T: Lanes>(
         &self,
         wo: Vec3<T>,
@@ -520,6 +523,7 @@ impl Basecoat {
         parts: BaseParts,
         sampler: FlakeSampler,
         added: Option<T>,
+        cosine: Option<Vec3<T>>,
     ) -> (Vec3<T>, T::Mask) {
         let pick = pick3(self.selection_of(parts).map(T::c), u[0]);
         // Each lobe's sampler runs only when an active lane chose it (one lane: only the
@@ -527,7 +531,11 @@ impl Basecoat {
         let [pigment, metal, flake] = [pick.lobe[0] & active, pick.lobe[1] & active, pick.lobe[2] & active];
         let mut wi = Vec3::from_f64(0.0, 0.0, 1.0);
         if pigment.any() {
-            wi = Vec3::select(pigment, cosine_hemisphere(u[1], u[2]), wi);
+            let w = match cosine {
+                Some(w) => w,
+                None => cosine_hemisphere(u[1], u[2]),
+            };
+            wi = Vec3::select(pigment, w, wi);
         }
         if let Some(m) = self.metal.as_ref().filter(|_| metal.any()) {
             let w = match added {

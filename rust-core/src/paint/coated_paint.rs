@@ -887,6 +887,12 @@ impl CoatedPaint {
         // chosen one); lanes that did not choose it never read its result.
         let normal = Vec3::from_f64(0.0, 0.0, 1.0);
         let w_top = if top.any() { self.coat.reflection_sample(wo, u[1], u[2]) } else { normal };
+        // The pigment (inside) and the multiple-scatter lobe (outside) draw the same cosine
+        // direction from (u1, u2), each for the lanes that chose it: on SIMD lanes, where both
+        // run, it is drawn once (one lane draws it only for the lobe it chose).
+        let pigment_drawn = layer.any() && self.base.selection_of(parts.base())[0] > 0.0;
+        let cosine =
+            if multiple.any() || (T::WIDTH > 1 && pigment_drawn) { Some(cosine_hemisphere(u[1], u[2])) } else { None };
         let (w_layer, layer_ok) = if layer.any() {
             let (wi_in, base_ok) = self.base.sample_direction_at(
                 o.wo_in,
@@ -895,6 +901,7 @@ impl CoatedPaint {
                 parts.base(),
                 FlakeSampler::Projected,
                 o.blur,
+                cosine,
             );
             let (w_layer, escapes) = self.coat.refract_out_masked(wi_in);
             (w_layer, base_ok & lanes::gt(wi_in.z, T::c(0.0)) & escapes)
@@ -902,7 +909,10 @@ impl CoatedPaint {
             (normal, T::Mask::splat(false))
         };
         let w_multiple = if multiple.any() {
-            let w = cosine_hemisphere(u[1], u[2]);
+            let w = match cosine {
+                Some(w) => w,
+                None => cosine_hemisphere(u[1], u[2]),
+            };
             if parts.coat && self.coat.multiple_scattering().is_some() {
                 // The cosine weight's first `ΔR(μo)` is the coat's multiple-scattering
                 // reflection: its azimuth follows the lobe's wrapped Cauchy ([`ms_sample`]).
