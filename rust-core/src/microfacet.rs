@@ -486,7 +486,9 @@ fn beckmann_lambda<T: Lanes>(cos_theta: T, a2_sin2: T) -> T {
 #[inline(always)]
 fn beckmann_lambda_of_a<T: Lanes>(a: T) -> T {
     let inv_sqrt_pi = T::c(0.5 * std::f64::consts::FRAC_2_SQRT_PI);
-    let l = lanes::max(lanes::div_fast(lanes::exp(-a * a) * inv_sqrt_pi, a) - lanes::erfc(a), T::c(0.0)) * T::c(0.5);
+    // The Gaussian and erfc together: SIMD lanes take both from one polynomial (one `exp` fewer).
+    let (gauss, erfc) = lanes::gauss_erfc(a);
+    let l = lanes::max(lanes::div_fast(gauss * inv_sqrt_pi, a) - erfc, T::c(0.0)) * T::c(0.5);
     keep(le(a, T::c(26.0)), l)
 }
 

@@ -261,6 +261,13 @@ pub trait Lanes:
     fn erfc_(self) -> Self {
         poly::erfc_f32(self)
     }
+    /// `(e^{−x²}, erfc(x))` together: SIMD lanes share the Gaussian inside the f32 `erfc`
+    /// polynomial ([`poly::gauss_erfc_f32`], one `exp` fewer than taking them apart); the
+    /// scalar types keep `exp(−x·x)` and [`crate::special::erfc`].
+    #[inline(always)]
+    fn gauss_erfc_(self) -> (Self, Self) {
+        poly::gauss_erfc_f32(self)
+    }
 
     /// The natural logarithm: the f32 polynomial of [`poly::ln_f32`] for SIMD lanes (positive
     /// normal arguments); the scalar types keep `std`.
@@ -419,6 +426,10 @@ impl<T: Real> Lanes for T {
         crate::special::erfc(self)
     }
     #[inline(always)]
+    fn gauss_erfc_(self) -> (Self, Self) {
+        (num_traits::Float::exp(-self * self), crate::special::erfc(self))
+    }
+    #[inline(always)]
     fn ln_(self) -> Self {
         num_traits::Float::ln(self)
     }
@@ -503,6 +514,11 @@ pub fn sin_cos_quarter<L: Lanes>(x: L) -> (L, L) {
 #[inline(always)]
 pub fn erfc<L: Lanes>(x: L) -> L {
     x.erfc_()
+}
+/// `(e^{−x²}, erfc(x))` together ([`Lanes::gauss_erfc_`]).
+#[inline(always)]
+pub fn gauss_erfc<L: Lanes>(x: L) -> (L, L) {
+    x.gauss_erfc_()
 }
 /// The natural logarithm (positive normal arguments in SIMD lanes).
 #[inline(always)]
