@@ -116,20 +116,34 @@ def attribution(binary, addresses, by):
     return out
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def kernel_profile_parser(doc, n, reps, by):
+    """The arguments this tool and `perf_profile.py` share: the material, the operation, the
+    call size and count, the attribution (`by`: the choices, the first the default) and the
+    `kernel_profile` binary."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("material", help="preset name or material JSON")
     ap.add_argument("op", choices=["eval", "pdf", "eval_pdf", "sample"])
-    ap.add_argument("--n", type=int, default=8192, help="elements per call (default 8192)")
-    ap.add_argument("--reps", type=int, default=4, help="calls (default 4)")
-    ap.add_argument("--by", choices=["mnemonic", "function", "line"], default="mnemonic")
-    ap.add_argument("--only", help="comma-separated mnemonics to count (with --by function|line)")
+    ap.add_argument("--n", type=int, default=n, help=f"elements per call (default {n})")
+    ap.add_argument("--reps", type=int, default=reps, help=f"calls (default {reps})")
+    ap.add_argument("--by", choices=by, default=by[0])
     ap.add_argument("--top", type=int, default=30)
     ap.add_argument("--binary", default=os.path.join(os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target")),
                                                      "release", "examples", "kernel_profile"))
+    return ap
+
+
+def require_binary(binary):
+    """Stops with the build command when `kernel_profile` is missing."""
+    if not os.path.exists(binary):
+        sys.exit(f"{binary} is missing: cargo build --release -p lacquer --example kernel_profile "
+                 "--config 'profile.release.package.lacquer.debug=1'")
+
+
+def main():
+    ap = kernel_profile_parser(__doc__, 8192, 4, ["mnemonic", "function", "line"])
+    ap.add_argument("--only", help="comma-separated mnemonics to count (with --by function|line)")
     args = ap.parse_args()
-    if not os.path.exists(args.binary):
-        sys.exit(f"{args.binary} is missing: cargo build --release -p lacquer --example kernel_profile")
+    require_binary(args.binary)
     counts = callgrind_counts(args.binary, args.material, args.op, args.n, args.reps)
     elements = args.n * args.reps
     total = sum(counts.values())

@@ -24,7 +24,6 @@ builds with alternated `kernel_profile` runs (docs/speed.md), not with this.
 Needs perf, addr2line (binutils) and taskset.
 """
 
-import argparse
 import collections
 import os
 import re
@@ -33,7 +32,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from instruction_mix import ROOT, attribution  # noqa: E402
+from instruction_mix import attribution, kernel_profile_parser, require_binary  # noqa: E402
 
 
 def run_perf(binary, material, op, n, reps, cpu, out):
@@ -72,20 +71,11 @@ def sampled_addresses(data, symbol):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("material", help="preset name or material JSON")
-    ap.add_argument("op", choices=["eval", "pdf", "eval_pdf", "sample"])
-    ap.add_argument("--n", type=int, default=65536, help="elements per call (default 65536)")
-    ap.add_argument("--reps", type=int, default=600, help="calls (default 600: ~30 000 samples)")
+    # 65536 elements × 600 calls: about 30 000 samples.
+    ap = kernel_profile_parser(__doc__, 65536, 600, ["function", "line"])
     ap.add_argument("--cpu", type=int, default=1, help="the CPU to pin to (default 1)")
-    ap.add_argument("--by", choices=["function", "line"], default="function")
-    ap.add_argument("--top", type=int, default=30)
-    ap.add_argument("--binary", default=os.path.join(os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target")),
-                                                     "release", "examples", "kernel_profile"))
     args = ap.parse_args()
-    if not os.path.exists(args.binary):
-        sys.exit(f"{args.binary} is missing: cargo build --release -p lacquer --example kernel_profile "
-                 "--config 'profile.release.package.lacquer.debug=1'")
+    require_binary(args.binary)
     with tempfile.TemporaryDirectory() as tmp:
         data = os.path.join(tmp, "perf.data")
         timing = run_perf(args.binary, args.material, args.op, args.n, args.reps, args.cpu, data)
