@@ -116,6 +116,20 @@ def attribution(binary, addresses, by):
     return out
 
 
+def tally_by_label(binary, weights, by):
+    """`weights` ({address: count or share}) summed by `attribution`'s label; stops with the
+    build command when the binary has no line tables for the core."""
+    labels = attribution(binary, weights, by)
+    if weights and all(label == "?" for label in labels.values()):
+        sys.exit(f"{binary} has no line tables for the core (release builds leave them out): "
+                 "cargo build --release -p lacquer --example kernel_profile "
+                 "--config 'profile.release.package.lacquer.debug=1'")
+    tally = collections.Counter()
+    for a, w in weights.items():
+        tally[labels.get(a, "?")] += w
+    return tally
+
+
 def kernel_profile_parser(doc, n, reps, by):
     """The arguments this tool and `perf_profile.py` share: the material, the operation, the
     call size and count, the attribution (`by`: the choices, the first the default) and the
@@ -157,14 +171,7 @@ def main():
     else:
         only = set(args.only.split(",")) if args.only else None
         chosen = {a: c for a, c in counts.items() if only is None or mn.get(a) in only}
-        labels = attribution(args.binary, chosen, args.by)
-        if chosen and all(label == "?" for label in labels.values()):
-            sys.exit(f"{args.binary} has no line tables for the core (release builds leave them out): "
-                     "cargo build --release -p lacquer --example kernel_profile "
-                     "--config 'profile.release.package.lacquer.debug=1'")
-        tally = collections.Counter()
-        for a, c in chosen.items():
-            tally[labels.get(a, "?")] += c
+        tally = tally_by_label(args.binary, chosen, args.by)
     for label, c in tally.most_common(args.top):
         print(f"{c / elements:8.2f}  {100 * c / total:5.1f} %  {label}")
 

@@ -24,7 +24,6 @@ builds with alternated `kernel_profile` runs (docs/speed.md), not with this.
 Needs perf, addr2line (binutils) and taskset.
 """
 
-import collections
 import os
 import re
 import subprocess
@@ -32,7 +31,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from instruction_mix import attribution, kernel_profile_parser, require_binary  # noqa: E402
+from instruction_mix import kernel_profile_parser, require_binary, tally_by_label  # noqa: E402
 
 
 def run_perf(binary, material, op, n, reps, cpu, out):
@@ -81,14 +80,7 @@ def main():
         timing = run_perf(args.binary, args.material, args.op, args.n, args.reps, args.cpu, data)
         symbol, share = hottest_symbol(data)
         shares = sampled_addresses(data, symbol)
-    labels = attribution(args.binary, shares, args.by)
-    if all(label == "?" for label in labels.values()):
-        sys.exit(f"{args.binary} has no line tables for the core (release builds leave them out): "
-                 "cargo build --release -p lacquer --example kernel_profile "
-                 "--config 'profile.release.package.lacquer.debug=1'")
-    tally = collections.Counter()
-    for a, pct in shares.items():
-        tally[labels.get(a, "?")] += pct
+    tally = tally_by_label(args.binary, shares, args.by)
     print(f"{args.material}: {timing.strip()}")
     print(f"hottest symbol ({share:.1f} % of the samples): {symbol}")
     print("percent of that symbol's samples, by the innermost crate "
