@@ -295,7 +295,7 @@ impl Basecoat {
     /// gives the directions alone, as for a pigment-only basecoat, to a caller that reads
     /// no glossy lobe at this pair: the paint's value under a rough coat, which reads its
     /// flakes at their own pair ([`super::coat::Coat::flake_refract_in`]) and has no metal
-    /// base. There the half vector and the flakes' `D` cost 5 % of `gold_flake_8`'s AVX-512
+    /// base. There the half vector and the flakes' `D` cost 9 % of `gold_flake_8`'s AVX-512
     /// eval for nothing (session 41).
     #[inline(always)]
     #[must_use]
