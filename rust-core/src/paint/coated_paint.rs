@@ -559,9 +559,10 @@ impl CoatedPaint {
     fn selection_at<T: Lanes>(&self, coat: &CoatAt<T>, multiple: [T; 3], mu_o: T, parts: PaintParts) -> [T; 3] {
         let [a, b, c] = self.single.eval_lanes(mu_o);
         let [d, e, f] = multiple;
-        let third = T::c(3.0);
-        let layer = (a + b + c) / third + self.spec_albedo(mu_o);
-        let mean_multiple = (d + e + f) / third;
+        // The channels' means by a product (a vector division costs the divider's throughput).
+        let third = T::c(1.0 / 3.0);
+        let layer = (a + b + c) * third + self.spec_albedo(mu_o);
+        let mean_multiple = (d + e + f) * third;
         if parts == PaintParts::ALL {
             return [coat.reflectance, layer, mean_multiple + coat.ms];
         }
@@ -1335,12 +1336,18 @@ impl CoatedPaint {
     pub fn sample_parts<L: Lanes>(&self, wo: Vec3<L>, u: [L; 3], parts: PaintParts) -> LaneSample<L> {
         let o = self.at_wo(wo, parts);
         let d = self.sample_direction_at(&o, u, parts);
-        // The value and the density at the drawn direction share their refractions, half
-        // vectors, table values and the coat's azimuthal factor ([`AtPair`]).
-        let p = self.at_pair(d.wi, &o);
+        // Lanes without a sample (total internal reflection leaves a direction of zero `z`
+        // and a tangent part longer than one; a reflection below the horizon) are evaluated
+        // at `wo`'s mirror direction instead, a unit vector above the surface, and dropped
+        // below as before. Left as they were, they failed the whole lane group's shortcuts
+        // that assume unit directions (Beckmann's negligible `Λ` in the flakes' masking:
+        // the full formula ran in most groups of `gold_flake_8`'s sampler). The sampled
+        // lanes' values are the same bit for bit.
+        let drawn = d.valid & lanes::gt(d.wi.z, L::c(0.0));
+        let p = self.at_pair(Vec3::select(drawn, d.wi, crate::frame::mirror_z(wo)), &o);
         let f = self.eval_pair(&p, &o, L::c(1.0), L::c(1.0), parts);
         let pdf = self.pdf_pair(&p, &o, parts);
-        let s = LaneSample::from_eval(d.wi, f, pdf, d.valid & lanes::gt(d.wi.z, L::c(0.0)));
+        let s = LaneSample::from_eval(d.wi, f, pdf, drawn);
         if !self.coat.is_smooth() {
             return s;
         }

@@ -1063,8 +1063,8 @@ impl VaryingPaint {
     fn selection<L: Lanes>(&self, e: &Element<L>, o: &AtWo<L>) -> [L; 3] {
         let [a, b, c] = self.single(e, &o.m);
         let [d, f, g] = o.multiple;
-        let third = L::c(3.0);
-        [o.reflectance, (a + b + c) / third + self.spec_albedo(e, &o.m), (d + f + g) / third + o.ms]
+        let third = L::c(1.0 / 3.0);
+        [o.reflectance, (a + b + c) * third + self.spec_albedo(e, &o.m), (d + f + g) * third + o.ms]
     }
 
     /// Whether the coat has a multiple-scattering reflection (a rough or textured-α coat).
@@ -1127,9 +1127,13 @@ impl VaryingPaint {
         };
         let wi = Vec3::select(top, w_top, Vec3::select(layer, w_layer, w_multiple));
         let valid = pick.valid & (top | (layer & layer_ok) | multiple);
-        let f = self.eval_with(e, wi, wo, &o);
-        let pdf = self.pdf_with(e, wi, wo, selection, o.ms);
-        let s = LaneSample::from_eval(wi, f, pdf, valid & lanes::gt(wi.z, L::c(0.0)));
+        // Lanes without a sample evaluated at `wo`'s mirror direction, as
+        // `CoatedPaint::sample_parts` does (the lane group's shortcuts assume unit directions).
+        let drawn = valid & lanes::gt(wi.z, L::c(0.0));
+        let wi_eval = Vec3::select(drawn, wi, crate::frame::mirror_z(wo));
+        let f = self.eval_with(e, wi_eval, wo, &o);
+        let pdf = self.pdf_with(e, wi_eval, wo, selection, o.ms);
+        let s = LaneSample::from_eval(wi, f, pdf, drawn);
         if !self.smooth() {
             return s;
         }
