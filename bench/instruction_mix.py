@@ -88,8 +88,13 @@ def mnemonics(binary, addresses):
     return out
 
 
+CHAIN_DEPTH = 4
+
+
 def attribution(binary, addresses, by):
-    """The innermost function (or file:line) of this crate each address was inlined from."""
+    """The innermost function (or file:line) of this crate each address was inlined from; with
+    `by == "chain"` that function and the crate functions it was inlined into, each with the line
+    of the call, up to `CHAIN_DEPTH` deep (which of several calls of one function costs)."""
     addresses = list(addresses)
     out = {}
     for start in range(0, len(addresses), 2000):
@@ -104,16 +109,24 @@ def attribution(binary, addresses, by):
             elif current is not None:
                 frames[current].append(line)
         for a, fr in frames.items():
-            label = "?"
-            for fn, loc in zip(fr[0::2], fr[1::2]):
-                if "/rust-core/src/" in loc and not re.search(r"/lanes/|/real\.rs|/math\.rs", loc):
-                    if by == "line":
-                        label = re.sub(r".*/rust-core/src/", "", loc).split(" ")[0]
-                    else:
-                        label = re.sub(r"<[^<>]*>", "", re.sub(r"<[^<>]*>", "", fn))
-                    break
-            out[a] = label
+            crate = [(fn, loc) for fn, loc in zip(fr[0::2], fr[1::2])
+                     if "/rust-core/src/" in loc and not re.search(r"/lanes/|/real\.rs|/math\.rs", loc)]
+            if not crate:
+                out[a] = "?"
+            elif by == "line":
+                out[a] = re.sub(r".*/rust-core/src/", "", crate[0][1]).split(" ")[0]
+            elif by == "chain":
+                out[a] = " < ".join(f"{short_name(fn)} ({re.sub(r'.*/rust-core/src/', '', loc).split(' ')[0]})"
+                                    for fn, loc in crate[:CHAIN_DEPTH])
+            else:
+                out[a] = re.sub(r"<[^<>]*>", "", re.sub(r"<[^<>]*>", "", crate[0][0]))
     return out
+
+
+def short_name(fn):
+    """`Type::method` of a demangled path (generic arguments and the crate's modules dropped)."""
+    parts = re.sub(r"<[^<>]*>", "", re.sub(r"<[^<>]*>", "", fn)).split("::")
+    return "::".join(parts[-2:]) if len(parts) > 1 and parts[-2][:1].isupper() else parts[-1]
 
 
 def tally_by_label(binary, weights, by):
@@ -154,8 +167,8 @@ def require_binary(binary):
 
 
 def main():
-    ap = kernel_profile_parser(__doc__, 8192, 4, ["mnemonic", "function", "line"])
-    ap.add_argument("--only", help="comma-separated mnemonics to count (with --by function|line)")
+    ap = kernel_profile_parser(__doc__, 8192, 4, ["mnemonic", "function", "line", "chain"])
+    ap.add_argument("--only", help="comma-separated mnemonics to count (with --by function|line|chain)")
     args = ap.parse_args()
     require_binary(args.binary)
     counts = callgrind_counts(args.binary, args.material, args.op, args.n, args.reps)

@@ -3,6 +3,7 @@
 
     python3 bench/perf_profile.py gold_flake_8 eval                 # by the crate function
     python3 bench/perf_profile.py gold_flake_8 sample --by line
+    python3 bench/perf_profile.py gold_flake_8 sample --by chain    # which call of a function costs
     python3 bench/perf_profile.py '<material JSON>' eval --binary /tmp/kernel_profile-old
 
 `bench/instruction_mix.py` counts instructions exactly, but under valgrind, which has no
@@ -71,7 +72,7 @@ def sampled_addresses(data, symbol):
 
 def main():
     # 65536 elements × 600 calls: about 30 000 samples.
-    ap = kernel_profile_parser(__doc__, 65536, 600, ["function", "line"])
+    ap = kernel_profile_parser(__doc__, 65536, 600, ["function", "line", "chain"])
     ap.add_argument("--cpu", type=int, default=1, help="the CPU to pin to (default 1)")
     args = ap.parse_args()
     require_binary(args.binary)
@@ -83,8 +84,9 @@ def main():
     tally = tally_by_label(args.binary, shares, args.by)
     print(f"{args.material}: {timing.strip()}")
     print(f"hottest symbol ({share:.1f} % of the samples): {symbol}")
-    print("percent of that symbol's samples, by the innermost crate "
-          + ("function" if args.by == "function" else "source line") + " (approximate: see --help)")
+    what = {"function": "function", "line": "source line",
+            "chain": "function and the crate functions it was inlined into (innermost first)"}[args.by]
+    print(f"percent of that symbol's samples, by the innermost crate {what} (approximate: see --help)")
     for label, pct in tally.most_common(args.top):
         print(f"{pct:6.2f} %  {label}")
 
