@@ -1342,7 +1342,9 @@ impl CoatedPaint {
         // below as before. Left as they were, they failed the whole lane group's shortcuts
         // that assume unit directions (Beckmann's negligible `Λ` in the flakes' masking:
         // the full formula ran in most groups of `gold_flake_8`'s sampler). The sampled
-        // lanes' values are the same bit for bit.
+        // lanes' values are the same bit for bit. The value and the density at the drawn
+        // direction share their refractions, half vectors, table values and the coat's
+        // azimuthal factor ([`AtPair`]).
         let drawn = d.valid & lanes::gt(d.wi.z, L::c(0.0));
         let p = self.at_pair(Vec3::select(drawn, d.wi, crate::frame::mirror_z(wo)), &o);
         let f = self.eval_pair(&p, &o, L::c(1.0), L::c(1.0), parts);
