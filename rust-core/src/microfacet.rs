@@ -429,18 +429,15 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
     let ulp = <T::Elem as num_traits::Float>::epsilon().f64();
     let eps = T::c(if ulp < 1e-10 { 4.5 * ulp } else { 32.0 * ulp });
     let hi0 = lanes::min(cot, T::c(8.0));
-    // `e^{−x̃²}` and `erfc(−x̃)` from one polynomial on SIMD lanes (one `exp` fewer per step;
-    // the scalar types keep `exp(−x·x)` and `special::erfc`, the same values as before).
-    let (gauss_hi, erfc_hi) = lanes::gauss_erfc(-hi0);
-    let cdf_hi = half * cot * erfc_hi + half * inv_sqrt_pi * gauss_hi;
+    let cdf_hi = half * cot * lanes::erfc(-hi0) + half * inv_sqrt_pi * lanes::exp(-hi0 * hi0);
     let target = u * cdf_hi;
     let tolerance = eps * lanes::max(target, T::c(1e-300));
     let (mut lo, mut hi) = (T::c(-8.0), hi0);
     let mut x = lanes::clamp(lanes::erfinv(T::c(2.0) * u - T::c(1.0)), lo, hi);
     let mut done = !active;
     for _ in 0..100 {
-        let (gauss, erfc) = lanes::gauss_erfc(-x);
-        let value = half * cot * erfc + half * inv_sqrt_pi * gauss - target;
+        let gauss = lanes::exp(-x * x);
+        let value = half * cot * lanes::erfc(-x) + half * inv_sqrt_pi * gauss - target;
         done = done | le(lanes::abs(value), tolerance);
         if done.all() {
             break;
@@ -449,8 +446,7 @@ fn beckmann_visible_slope<T: Lanes>(cot: T, u: T, active: T::Mask) -> T {
         hi = select(above & !done, x, hi);
         lo = select(!above & !done, x, lo);
         let deriv = (cot - x) * inv_sqrt_pi * gauss;
-        // The fast quotient: a Newton step needs no exact division (the stopping test is on `value`).
-        let newton = x - lanes::div_fast(value, deriv);
+        let newton = x - value / deriv;
         let inside = gt(deriv, T::c(0.0)) & gt(newton, lo) & lt(newton, hi);
         x = select(done, x, select(inside, newton, half * (lo + hi)));
         done = done | lt(hi - lo, eps * lanes::max(lanes::abs(x), T::c(1.0)));
