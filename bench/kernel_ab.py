@@ -22,11 +22,14 @@ import subprocess
 import sys
 
 
-def ns_per_element(binary, material, op, n, reps, cpu):
-    """The CPU ns per element of `kernel_profile`'s kernel thread, or None with its output."""
-    run = subprocess.run(["taskset", "-c", str(cpu), binary, material, op, str(n), str(reps)],
+def ns_per_element(binary, material, op, n, reps, cpu, layout, caches):
+    """The CPU ns per element of `kernel_profile`'s kernel thread (wall ns for cold caches); exits
+    with its output when it fails."""
+    run = subprocess.run(["taskset", "-c", str(cpu), binary, material, op, str(n), str(reps), "1", layout, caches],
                          capture_output=True, text=True)
-    m = re.search(r"([0-9.]+) ns/element of this thread", run.stdout + run.stderr)
+    # Warm runs: the kernel thread's CPU time; cold ones print wall time only (kernel_profile).
+    m = re.search(r"([0-9.]+) ns/element of this thread", run.stdout + run.stderr) or \
+        re.search(r"([0-9.]+) ns/element wall", run.stdout + run.stderr)
     if run.returncode != 0 or not m:
         sys.exit(f"{binary} {material} {op} failed ({run.returncode}):\n{(run.stdout + run.stderr)[-1500:]}")
     return float(m.group(1))
@@ -43,6 +46,9 @@ def main():
     ap.add_argument("--reps", type=int, default=200, help="calls per run (default 200)")
     ap.add_argument("--rounds", type=int, default=3, help="alternations (default 3)")
     ap.add_argument("--cpu", type=int, default=1, help="the CPU to pin to (default 1)")
+    ap.add_argument("--layout", choices=["soa", "xyz"], default="soa", help="array layout (default soa)")
+    ap.add_argument("--caches", choices=["warm", "cold"], default="warm",
+                    help="cold: 256 MiB of other memory written before each call (kernel_profile's `cold`)")
     args = ap.parse_args()
     if len(args.binaries) < 2:
         sys.exit("give two or more kernel_profile builds")
@@ -51,14 +57,14 @@ def main():
             sys.exit(f"{b} is not an executable kernel_profile build")
     base = [os.path.basename(b) for b in args.binaries]
     names = base if len(set(base)) == len(base) else args.binaries
-    print(f"CPU ns per element of the kernel thread, cpu {args.cpu}, n = {args.n}, {args.reps} calls per run, "
-          f"{args.rounds} alternated rounds; min per build")
+    print(f"CPU ns per element of the kernel thread (cold: wall ns), cpu {args.cpu}, n = {args.n}, {args.reps} calls per run, "
+          f"{args.rounds} alternated rounds, {args.layout} layout, {args.caches} caches; min per build")
     for material in args.material or ["gold_flake_8"]:
         for op in args.op or ["eval", "pdf", "sample"]:
             runs = [[] for _ in args.binaries]
             for _ in range(args.rounds):
                 for k, b in enumerate(args.binaries):
-                    runs[k].append(ns_per_element(b, material, op, args.n, args.reps, args.cpu))
+                    runs[k].append(ns_per_element(b, material, op, args.n, args.reps, args.cpu, args.layout, args.caches))
             cells = "  ".join(f"{name}: min {min(r):.2f} ({', '.join(f'{v:.2f}' for v in r)})"
                               for name, r in zip(names, runs))
             label = material if len(material) <= 40 else material[:37] + "..."

@@ -1,10 +1,13 @@
 //! Profiling aid: runs one batch operation of one material in a loop, so `perf record` /
 //! `valgrind --tool=callgrind` see only that kernel.
 //!
-//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz, default soa]`
+//! `cargo run --release -p lacquer --example kernel_profile -- <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz, default soa] [warm|cold, default warm]`
 //!
 //! The last argument picks the array layout: `soa` (one array per component, what Dr.Jit hosts
 //! hold) or `xyz` (interleaved `x y z` per element, what `lq_eval` and C/C++ renderers pass).
+//! `cold` writes 256 MiB of other memory before each (timed) call, so the call's arrays come
+//! from memory rather than from the caches, as in `bench/vs_mitsuba.py`, where the other
+//! library's calls run between Lacquer's.
 //!
 //! Build it with the CLI, `cargo build --release -p lacquer-cli -p lacquer --example
 //! kernel_profile`: with `-p lacquer` alone cargo resolves other features for the crates the
@@ -36,7 +39,7 @@ fn dst(a: &mut Arrays) -> Dst3<'_, f32> {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let usage =
-        "kernel_profile <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz]";
+        "kernel_profile <preset|material JSON> <eval|pdf|eval_pdf|sample> [n] [iterations] [threads, default 1] [soa|xyz] [warm|cold]";
     let spec = args.get(1).expect(usage);
     let m = if spec.trim_start().starts_with('{') { Material::from_json(spec) } else { Material::preset(spec) }
         .expect("a preset name or material JSON");
@@ -61,6 +64,12 @@ fn main() {
         "xyz" => true,
         _ => panic!("{usage}"),
     };
+    let cold = match args.get(7).map_or("warm", String::as_str) {
+        "warm" => false,
+        "cold" => true,
+        _ => panic!("{usage}"),
+    };
+    let mut evict = vec![0u8; if cold { 256 << 20 } else { 0 }];
     let soa = |v: Vec<[f32; 3]>| -> Arrays {
         if xyz {
             [v.as_flattened().to_vec(), Vec::new(), Vec::new()]
@@ -74,8 +83,12 @@ fn main() {
     let zeros = || soa(vec![[0f32; 3]; n]);
     let (mut out, mut w) = (zeros(), zeros());
     let mut pdf = vec![0f32; n];
-    let (start, cpu_start) = (std::time::Instant::now(), thread_cpu_ns());
-    for _ in 0..iterations {
+    let (mut wall_ns, mut cpu_ns) = (0.0, Some(0));
+    for k in 0..iterations {
+        if cold {
+            evict.fill(k as u8);
+        }
+        let (start, cpu_start) = (std::time::Instant::now(), thread_cpu_ns());
         let f = dst(&mut out);
         match op {
             "eval" => drop(batch::eval_pdf(&m, &src(&wi), &src(&wo), None, Some(&f), None)),
@@ -87,18 +100,26 @@ fn main() {
             }
             _ => panic!("{usage}"),
         }
+        wall_ns += start.elapsed().as_secs_f64() * 1e9;
+        cpu_ns = match (cpu_ns, cpu_start, thread_cpu_ns()) {
+            (Some(sum), Some(a), Some(b)) => Some(sum + (b - a)),
+            _ => None,
+        };
     }
     let per = |ns: f64| ns / (n * iterations) as f64;
-    let wall = per(start.elapsed().as_secs_f64() * 1e9);
-    let cpu = match (cpu_start, thread_cpu_ns()) {
-        (Some(a), Some(b)) => format!(", {:.2} ns/element of this thread's CPU time", per((b - a) as f64)),
+    let wall = per(wall_ns);
+    // The thread's CPU time is read per call here, and `schedstat` advances at scheduler
+    // ticks: over cold calls (one per eviction) it is too coarse, so wall time only.
+    let cpu = match cpu_ns {
+        Some(ns) if !cold => format!(", {:.2} ns/element of this thread's CPU time", per(ns as f64)),
         _ => String::new(),
     };
     println!(
-        "{op}: {wall:.2} ns/element wall{cpu} ({} lanes, {} threads, {} layout)",
+        "{op}: {wall:.2} ns/element wall{cpu} ({} lanes, {} threads, {} layout, {})",
         batch::simd_level().name(),
         batch::thread_count(),
-        if xyz { "xyz" } else { "soa" }
+        if xyz { "xyz" } else { "soa" },
+        if cold { "cold caches" } else { "warm caches" }
     );
 }
 
