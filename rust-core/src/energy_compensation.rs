@@ -1386,7 +1386,7 @@ mod tests {
         unsafe fn run(x: f32) -> f32 {
             ln_1p_lanes(F32x8::splat(x)).lane(3)
         }
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+        if !crate::lanes::x86::avx2_or_allowed_skip("lane_ln_1p_matches_std") {
             return;
         }
         let mut worst = 0.0f64;

@@ -69,10 +69,6 @@ fn soa(v: &[[f32; 3]]) -> [Vec<f32>; 3] {
     [v.iter().map(|a| a[0]).collect(), v.iter().map(|a| a[1]).collect(), v.iter().map(|a| a[2]).collect()]
 }
 
-fn levels() -> Vec<SimdLevel> {
-    [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512].into_iter().filter(|l| l.supported()).collect()
-}
-
 /// Relative difference with an absolute floor for values near zero.
 fn close(a: f64, b: f64, rel: f64, floor: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs()) + floor
@@ -96,7 +92,7 @@ fn eval_and_pdf_agree_with_scalar_and_reference() {
         let m = Material::from_json(json).unwrap();
         let active = if masked { mask.clone() } else { vec![1; n] };
         let active_arg = masked.then_some(&active[..]);
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             let mut f = [vec![7.0f32; n], vec![7.0f32; n], vec![7.0f32; n]];
             let mut pdf = vec![7.0f32; n];
@@ -182,7 +178,7 @@ fn sample_agrees_with_scalar() {
     let wo_flat: Vec<f32> = wo.iter().flatten().copied().collect();
     for json in MATERIALS {
         let m = Material::from_json(json).unwrap();
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             let (mut wi, mut weight, mut pdf, mut flags) =
                 (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n], vec![0.0f32; n], vec![0u32; n]);
@@ -279,7 +275,7 @@ fn joint_eval_pdf_equals_the_separate_calls() {
     names.push(r#"{"model": "coated_paint", "coat_roughness": 0.2, "base_metallic": 1, "base_roughness": 0.05, "flake_density": 0}"#);
     for name in names {
         let m = &Material::from_json(name).unwrap();
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             // With the mask: the general loop; without: the full-group loop of plain calls.
             for active in [Some(&active[..]), None] {
@@ -328,7 +324,7 @@ fn a_mask_of_every_lobe_is_the_plain_call() {
     let bits_of = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for name in MATERIALS.iter().copied().chain([r#"{"preset": "gold_flake_8"}"#]) {
         let m = &Material::from_json(name).unwrap();
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             for active in [Some(&active[..]), None] {
                 let (wiv, wov) = (Src3::interleaved(&wi_f), Src3::interleaved(&wo_f));
@@ -412,7 +408,7 @@ fn surface_point_calls_agree_with_eval_at_and_sample_at() {
     for name in ["gold_flake_8", "pearl_white"] {
         let m = Material::from_json(lacquer::presets::find(name).unwrap().json).unwrap();
         assert!(m.spatially_varying(), "{name} has sparkle");
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             let mut f = [vec![7.0f32; n], vec![7.0f32; n], vec![7.0f32; n]];
             let mut pdf = vec![7.0f32; n];
@@ -560,7 +556,7 @@ fn mixed_layouts_give_identical_results() {
     let layouts = [Layout::Soa, Layout::Xyz, Layout::Xyzw];
     for json in [MATERIALS[1], MATERIALS[12], MATERIALS[18]] {
         let m = Material::from_json(json).unwrap();
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             for n in [17usize, 1037] {
                 let (wi, wo) = directions(n, 3 * n as u64);
@@ -646,7 +642,7 @@ fn layouts_give_identical_results() {
     let layouts = [Layout::Soa, Layout::Xyz, Layout::Xyzw];
     for json in [MATERIALS[0], MATERIALS[1], MATERIALS[7], MATERIALS[12], MATERIALS[18], MATERIALS[11]] {
         let m = Material::from_json(json).unwrap();
-        for level in levels() {
+        for level in crate::simd_levels() {
             assert!(batch::set_simd_level(level));
             for &n in &lens {
                 let (wi, wo) = directions(n, n as u64);

@@ -324,7 +324,7 @@ fn simd_levels_agree_with_the_f64_reference() {
         for (alphas, with_alpha) in [(vec![0.0], false), (at_nodes.clone(), true)] {
             let el = elements(&alphas);
             let (f64f, f64p) = run_varying(&m, &el, with_alpha, None);
-            for l in levels() {
+            for l in crate::simd_levels() {
                 let (f, p) = run_varying(&m, &el, with_alpha, Some(l));
                 let ef = f.iter().zip(&f64f).map(|(a, b)| (a - b).abs() / (b.abs() + 1e-3)).fold(0.0, f64::max);
                 let ep = p.iter().zip(&f64p).map(|(a, b)| (a - b).abs() / (b.abs() + 1e-3)).fold(0.0, f64::max);
@@ -334,10 +334,6 @@ fn simd_levels_agree_with_the_f64_reference() {
         }
     }
     batch::set_simd_level(SimdLevel::detect());
-}
-
-fn levels() -> Vec<SimdLevel> {
-    [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512].into_iter().filter(|l| l.supported()).collect()
 }
 
 /// Invalid per-element values (NaN, out of range, density + pearl over 100 %, α outside
@@ -366,7 +362,7 @@ fn invalid_parameters_and_masked_lanes_are_zero_and_reported() {
     let mut active = vec![1u8; n];
     active[20] = 0;
     active[5] = 0; // inactive and invalid: not counted
-    for l in levels() {
+    for l in crate::simd_levels() {
         assert!(batch::set_simd_level(l));
         let run = |r: &[f32], d: &[f32], a: &[f32]| {
             let tex = PaintTexture {
@@ -454,7 +450,7 @@ fn samples_are_consistent_with_eval_and_pdf() {
         let wo: Vec<f32> = dirs.iter().flat_map(|d| [d.1.x, d.1.y, d.1.z.abs()]).map(|x| x as f32).collect();
         let mut rng = Pcg32::new(9, 1);
         let u: Vec<f32> = (0..3 * n).map(|_| rng.uniform() as f32).collect();
-        for l in levels() {
+        for l in crate::simd_levels() {
             assert!(batch::set_simd_level(l));
             let (mut swi, mut sw, mut sp, mut fl) =
                 (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n], vec![0.0f32; n], vec![0u32; n]);
