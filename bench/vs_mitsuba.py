@@ -137,16 +137,27 @@ def set_process_affinity(cpus):
 def machine_info():
     cpu = platform.processor() or "unknown CPU"
     flags = set()
+    # Family and model tell CPU generations apart where the model name does not (a VM's
+    # "AMD EPYC" was Zen 3 without AVX-512 in some sessions and Zen 4 with it in others).
+    family = model = None
     try:
         with open("/proc/cpuinfo") as f:
             for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                elif line.startswith("flags"):
-                    flags = set(line.split(":", 1)[1].split())
+                key, _, value = line.partition(":")
+                key, value = key.strip(), value.strip()
+                if key == "cpu family":
+                    family = value
+                elif key == "model":
+                    model = value
+                elif key == "model name":
+                    cpu = value
+                elif key == "flags":
+                    flags = set(value.split())
                     break
     except OSError:
         pass
+    if family is not None and model is not None:
+        cpu = f"{cpu} (family {family}, model {model})"
     simd = [x for x in ("avx2", "fma", "avx512f") if x in flags]
     return {"cpu": cpu, "logical_cpus": os.cpu_count(), "allowed_cpus": sorted(os.sched_getaffinity(0)),
             "simd": simd, "system": f"{platform.system()} {platform.release()}",
