@@ -56,6 +56,29 @@ case "$opt_level" in
   *) echo "fuzz/smoke.sh: LACQUER_FUZZ_OPT_LEVEL must be 0-3, s or z, got '$opt_level'" >&2; exit 2 ;;
 esac
 export RUSTFLAGS="-Copt-level=$opt_level${RUSTFLAGS:+ $RUSTFLAGS}"
+# Only the batch kernels this machine runs (LACQUER_FUZZ_SIMD_KERNELS: avx512, avx2 or all;
+# default: this CPU's best instruction set, the one the library's dispatch picks here). The
+# smoke run never executes the other set's kernels, and leaving them out shortens the build,
+# the CI run's longest pole (`--cfg lacquer_simd_kernels`, `SimdLevel::compiled`;
+# docs/reliability.md, "CI duration: session 45"). Long runs build every kernel.
+kernels="${LACQUER_FUZZ_SIMD_KERNELS:-}"
+if [ -z "$kernels" ]; then
+  kernels=all
+  if [ "$(uname -m)" = x86_64 ] && [ -r /proc/cpuinfo ]; then
+    cpu_flags="$(grep -m1 '^flags' /proc/cpuinfo || true)"
+    if grep -qw avx512f <<<"$cpu_flags"; then
+      kernels=avx512
+    elif grep -qw avx2 <<<"$cpu_flags" && grep -qw fma <<<"$cpu_flags"; then
+      kernels=avx2
+    fi
+  fi
+fi
+case "$kernels" in
+  all) ;;
+  avx2|avx512) RUSTFLAGS="$RUSTFLAGS --cfg lacquer_simd_kernels=\"$kernels\"" ;;
+  *) echo "fuzz/smoke.sh: LACQUER_FUZZ_SIMD_KERNELS must be avx512, avx2 or all, got '$kernels'" >&2; exit 2 ;;
+esac
+echo "fuzz: batch kernels built: $kernels (and the scalar path); RUSTFLAGS=$RUSTFLAGS"
 # One known false leak report (a rayon worker's thread-local teardown racing the leak check):
 # suppressed by its innermost glibc frame only, see fuzz/lsan.supp.
 export LSAN_OPTIONS="suppressions=$here/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"

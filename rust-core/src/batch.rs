@@ -65,24 +65,40 @@ impl SimdLevel {
             SimdLevel::Avx512 => "avx512",
         }
     }
-    /// The best level this CPU supports.
+    /// The best level this CPU supports and this build has kernels for
+    /// ([`SimdLevel::compiled`]).
     #[must_use]
     pub fn detect() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if is_x86_feature_detected!("avx512f") {
-                return SimdLevel::Avx512;
-            }
-            if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
-                return SimdLevel::Avx2;
-            }
-        }
-        SimdLevel::Scalar
+        [SimdLevel::Avx512, SimdLevel::Avx2].into_iter().find(|l| l.supported()).unwrap_or(SimdLevel::Scalar)
     }
-    /// True when this CPU can run the level.
+    /// True when this CPU can run the level and this build has its kernels.
     #[must_use]
     pub fn supported(self) -> bool {
-        self.width() <= Self::detect().width()
+        if !self.compiled() {
+            return false;
+        }
+        match self {
+            SimdLevel::Scalar => true,
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"),
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => is_x86_feature_detected!("avx512f"),
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+    /// True when this build holds the level's kernels. Every build does (on x86-64), except
+    /// one configured with `--cfg lacquer_simd_kernels="avx2"` or `"avx512"`, which holds that
+    /// instruction set's kernels and the scalar path only: `fuzz/smoke.sh` builds so for the
+    /// machine it runs on, whose runs never execute the other set's kernels, and the smoke
+    /// build's compile shrinks by theirs (docs/reliability.md, "CI duration: session 45").
+    #[must_use]
+    pub const fn compiled(self) -> bool {
+        match self {
+            SimdLevel::Scalar => true,
+            SimdLevel::Avx2 => cfg!(target_arch = "x86_64") && !cfg!(lacquer_simd_kernels = "avx512"),
+            SimdLevel::Avx512 => cfg!(target_arch = "x86_64") && !cfg!(lacquer_simd_kernels = "avx2"),
+        }
     }
 }
 
@@ -1314,23 +1330,29 @@ impl KernelVisitor for Dispatch<'_, '_> {
         let sample = matches!(args, Args::Sample { .. });
         #[cfg(target_arch = "x86_64")]
         {
-            use crate::lanes::{
-                pair::X2,
-                x86::{F32x16, F32x8},
-            };
-            // One function per instruction set and operation (see `Args::run_eval_pdf`).
+            use crate::lanes::pair::X2;
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
+            use crate::lanes::x86::F32x16;
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
+            use crate::lanes::x86::F32x8;
+            // One function per instruction set and operation (see `Args::run_eval_pdf`); an
+            // instruction set left out of the build (`SimdLevel::compiled`) has none.
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
             #[target_feature(enable = "avx2,fma")]
             fn avx2_eval_pdf<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
                 args.run_eval_pdf::<F32x8, X2<F32x8>, K>(kernel, range)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
             #[target_feature(enable = "avx2,fma")]
             fn avx2_sample<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
                 args.run_sample::<F32x8, X2<F32x8>, K>(kernel, range)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
             #[target_feature(enable = "avx512f")]
             fn avx512_eval_pdf<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
                 args.run_eval_pdf::<F32x16, X2<F32x16>, K>(kernel, range)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
             #[target_feature(enable = "avx512f")]
             fn avx512_sample<K: LaneKernel>(args: Args<'_, '_>, kernel: &K, range: (usize, usize)) -> BatchReport {
                 args.run_sample::<F32x16, X2<F32x16>, K>(kernel, range)
@@ -1338,11 +1360,17 @@ impl KernelVisitor for Dispatch<'_, '_> {
             if K::NATIVE {
                 // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
                 match (simd_level(), sample) {
+                    #[cfg(not(lacquer_simd_kernels = "avx2"))]
                     (SimdLevel::Avx512, false) => return unsafe { avx512_eval_pdf(args, kernel, range) },
+                    #[cfg(not(lacquer_simd_kernels = "avx2"))]
                     (SimdLevel::Avx512, true) => return unsafe { avx512_sample(args, kernel, range) },
+                    #[cfg(not(lacquer_simd_kernels = "avx512"))]
                     (SimdLevel::Avx2, false) => return unsafe { avx2_eval_pdf(args, kernel, range) },
+                    #[cfg(not(lacquer_simd_kernels = "avx512"))]
                     (SimdLevel::Avx2, true) => return unsafe { avx2_sample(args, kernel, range) },
-                    (SimdLevel::Scalar, _) => {}
+                    // The scalar level, or one this build has no kernels for (never selected:
+                    // `SimdLevel::supported`).
+                    _ => {}
                 }
             }
         }
@@ -1864,8 +1892,13 @@ impl VaryingArgs<'_, '_, f32> {
         let sample = matches!(self, VaryingArgs::Sample { .. });
         #[cfg(target_arch = "x86_64")]
         {
-            use crate::lanes::x86::{F32x16, F32x8};
-            // One function per instruction set and operation (see `Args::run_eval_pdf`).
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
+            use crate::lanes::x86::F32x16;
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
+            use crate::lanes::x86::F32x8;
+            // One function per instruction set and operation (see `Args::run_eval_pdf`), none
+            // for an instruction set left out of the build (`SimdLevel::compiled`).
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
             #[target_feature(enable = "avx2,fma")]
             fn avx2_eval_pdf(
                 a: VaryingArgs<'_, '_, f32>,
@@ -1875,6 +1908,7 @@ impl VaryingArgs<'_, '_, f32> {
             ) -> BatchReport {
                 a.run_eval_pdf::<F32x8>(vp, t, r)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx512"))]
             #[target_feature(enable = "avx2,fma")]
             fn avx2_sample(
                 a: VaryingArgs<'_, '_, f32>,
@@ -1884,6 +1918,7 @@ impl VaryingArgs<'_, '_, f32> {
             ) -> BatchReport {
                 a.run_sample::<F32x8>(vp, t, r)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
             #[target_feature(enable = "avx512f")]
             fn avx512_eval_pdf(
                 a: VaryingArgs<'_, '_, f32>,
@@ -1893,6 +1928,7 @@ impl VaryingArgs<'_, '_, f32> {
             ) -> BatchReport {
                 a.run_eval_pdf::<F32x16>(vp, t, r)
             }
+            #[cfg(not(lacquer_simd_kernels = "avx2"))]
             #[target_feature(enable = "avx512f")]
             fn avx512_sample(
                 a: VaryingArgs<'_, '_, f32>,
@@ -1904,11 +1940,16 @@ impl VaryingArgs<'_, '_, f32> {
             }
             // SAFETY: simd_level() only reports levels the CPU has (detected at run time).
             match (simd_level(), sample) {
+                #[cfg(not(lacquer_simd_kernels = "avx2"))]
                 (SimdLevel::Avx512, false) => return unsafe { avx512_eval_pdf(self, vp, tex, range) },
+                #[cfg(not(lacquer_simd_kernels = "avx2"))]
                 (SimdLevel::Avx512, true) => return unsafe { avx512_sample(self, vp, tex, range) },
+                #[cfg(not(lacquer_simd_kernels = "avx512"))]
                 (SimdLevel::Avx2, false) => return unsafe { avx2_eval_pdf(self, vp, tex, range) },
+                #[cfg(not(lacquer_simd_kernels = "avx512"))]
                 (SimdLevel::Avx2, true) => return unsafe { avx2_sample(self, vp, tex, range) },
-                (SimdLevel::Scalar, _) => {}
+                // The scalar level, or one this build has no kernels for (never selected).
+                _ => {}
             }
         }
         #[inline(never)]

@@ -29,5 +29,11 @@ pub fn simd_levels() -> Vec<lacquer::batch::SimdLevel> {
         assert!(allowed, "this CPU has no AVX2 + FMA: the lane kernels would go untested (LACQUER_ALLOW_SKIP=1 allows it outside CI)");
         eprintln!("no AVX2 + FMA: the lane kernels are not tested on this CPU");
     }
+    // A build with one instruction set's kernels only (`--cfg lacquer_simd_kernels`, the fuzz
+    // smoke build's) would leave the other set's comparisons out: that fails too.
+    #[cfg(target_arch = "x86_64")]
+    for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+        assert!(level.compiled(), "this build has no {} kernels (--cfg lacquer_simd_kernels): they would go untested", level.name());
+    }
     [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512].into_iter().filter(|l| l.supported()).collect()
 }
