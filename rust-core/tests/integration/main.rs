@@ -33,7 +33,11 @@ pub fn simd_levels() -> Vec<lacquer::batch::SimdLevel> {
     // smoke build's) would leave the other set's comparisons out: that fails too.
     #[cfg(target_arch = "x86_64")]
     for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
-        assert!(level.compiled(), "this build has no {} kernels (--cfg lacquer_simd_kernels): they would go untested", level.name());
+        assert!(
+            level.compiled(),
+            "this build has no {} kernels (--cfg lacquer_simd_kernels): they would go untested",
+            level.name()
+        );
     }
     [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512].into_iter().filter(|l| l.supported()).collect()
 }
