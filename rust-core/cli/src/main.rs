@@ -126,6 +126,11 @@ struct FitArgs {
     /// Wall-time budget per model in seconds (coated_paint builds slowly: give it one).
     #[arg(long)]
     budget: Option<f64>,
+    /// Good enough: stop each start and refinement once its weighted error on its subset is
+    /// this many dB below the spread of the values there (e.g. 40; default: iterate until the
+    /// fit stops improving).
+    #[arg(long)]
+    stop_snr: Option<f64>,
     /// Seed of the fit subsets (and of --noise).
     #[arg(long, default_value_t = 0x05ee_df17)]
     seed: u64,
@@ -616,6 +621,7 @@ fn run_fit(args: FitArgs) -> ExitCode {
         opts.threads = t.max(1);
     }
     opts.budget_seconds = args.budget;
+    opts.stop_snr_db = args.stop_snr;
     if args.objective == "entries" {
         opts.objective = fit::Objective::Entries;
     }

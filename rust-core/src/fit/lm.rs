@@ -43,11 +43,23 @@ pub struct LmConfig {
     pub threads: usize,
     /// Stop (with [`Stop::Time`]) at the first iteration that starts after this instant.
     pub deadline: Option<std::time::Instant>,
+    /// Stop (with [`Stop::Target`]) as soon as the cost is at or below this absolute value
+    /// (`None`: an exact fit runs until a relative rule or `max_iterations` stops it).
+    pub cost_target: Option<f64>,
 }
 
 impl Default for LmConfig {
     fn default() -> Self {
-        Self { max_iterations: 100, ftol: 1e-9, xtol: 1e-9, gtol: 1e-12, lambda0: 1e-3, threads: 1, deadline: None }
+        Self {
+            max_iterations: 100,
+            ftol: 1e-9,
+            xtol: 1e-9,
+            gtol: 1e-12,
+            lambda0: 1e-3,
+            threads: 1,
+            deadline: None,
+            cost_target: None,
+        }
     }
 }
 
@@ -69,6 +81,8 @@ pub enum Stop {
     BadStart,
     /// The deadline passed.
     Time,
+    /// The cost reached `cost_target`.
+    Target,
 }
 
 /// Outcome of a minimisation.
@@ -187,6 +201,9 @@ pub fn minimize<P: Problem>(p: &P, x0: &[f64], lo: &[f64], hi: &[f64], cfg: &LmC
     let (mut a, mut g) = (vec![0.0; n * n], vec![0.0; n]);
     let mut r_new = vec![0.0; m];
     let stop = loop {
+        if cfg.cost_target.is_some_and(|target| cost <= target) {
+            break Stop::Target;
+        }
         if iterations >= cfg.max_iterations {
             break Stop::Iterations;
         }
@@ -352,6 +369,24 @@ mod tests {
         let r = minimize(&p, &[0.5, 3.0], &[0.0, -1.0], &[10.0, 10.0], &cfg);
         assert!((r.x[0] - 2.0).abs() < 1e-7 && (r.x[1] - 0.7).abs() < 1e-7, "{r:?}");
         assert!(r.cost < 1e-16);
+    }
+
+    #[test]
+    fn cost_target_stops_an_exact_fit_early() {
+        // Without a target the exact fit iterates down to round-off (cost < 1e-16 above); with
+        // one it stops at the first point at or below it, in fewer iterations.
+        let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+        let y = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
+        let p = Decay { t, y };
+        let (lo, hi) = ([0.0, -1.0], [10.0, 10.0]);
+        let full = minimize(&p, &[0.5, 3.0], &lo, &hi, &LmConfig::default());
+        let cfg = LmConfig { cost_target: Some(1e-6), ..LmConfig::default() };
+        let r = minimize(&p, &[0.5, 3.0], &lo, &hi, &cfg);
+        assert_eq!(r.stop, Stop::Target, "{r:?}");
+        assert!(r.cost <= 1e-6 && r.iterations < full.iterations, "{r:?} vs {full:?}");
+        // A start already at the target returns it without an iteration.
+        let at = minimize(&p, &[2.0, 0.7], &lo, &hi, &cfg);
+        assert_eq!((at.stop, at.iterations), (Stop::Target, 0));
     }
 
     #[test]

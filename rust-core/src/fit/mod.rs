@@ -357,6 +357,24 @@ struct LeastSquares<'a> {
     points: Vec<(Sample, f64)>,
 }
 
+impl LeastSquares<'_> {
+    /// `½Σ s²(M − M̄)²` per channel summed, `M̄` the channel's `s²`-weighted mean: the cost of
+    /// the best constant, the subset's counterpart of the variance the report's SNR divides by.
+    fn signal_cost(&self) -> f64 {
+        (0..3)
+            .map(|c| {
+                let (mut w, mut wm) = (0.0, 0.0);
+                for (s, scale) in &self.points {
+                    w += scale * scale;
+                    wm += scale * scale * s.value[c];
+                }
+                let mean = if w > 0.0 { wm / w } else { 0.0 };
+                0.5 * self.points.iter().map(|(s, scale)| (scale * (s.value[c] - mean)).powi(2)).sum::<f64>()
+            })
+            .sum()
+    }
+}
+
 impl lm::Problem for LeastSquares<'_> {
     fn n_vars(&self) -> usize {
         self.model.vars.len()
@@ -450,6 +468,12 @@ pub struct FitOptions {
     /// 40 % of it; iterations stop when it is spent (the report says `"stop": "time"`).
     /// Models whose material takes long to build (coated paint: tens of ms) need one.
     pub budget_seconds: Option<f64>,
+    /// Good enough: a start or a refinement stops (`"stop": "target"`) once its weighted error
+    /// on its subset is this many dB below the weighted spread of the values there,
+    /// `10·log10(Σ s²(M − M̄)² / Σ s²(K − M)²)` (`M̄` per channel) — the subset's counterpart of
+    /// the report's SNR, which is over the whole table and unweighted. `None`: an exact fit
+    /// iterates until a relative rule or an iteration limit stops it.
+    pub stop_snr_db: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -465,6 +489,7 @@ impl Default for FitOptions {
             seed: 0x05ee_df17,
             objective: Objective::Integral,
             budget_seconds: None,
+            stop_snr_db: None,
         }
     }
 }
@@ -518,10 +543,12 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
     }
     let deadline =
         |share: f64| opts.budget_seconds.map(|b| t0 + std::time::Duration::from_secs_f64(b.max(0.0) * share));
+    let cost_target = |p: &LeastSquares| opts.stop_snr_db.map(|db| p.signal_cost() * 10f64.powf(-db / 10.0));
     let coarse_cfg = lm::LmConfig {
         max_iterations: opts.coarse_iterations,
         ftol: 1e-6,
         deadline: deadline(0.4),
+        cost_target: cost_target(&coarse),
         ..lm::LmConfig::default()
     };
     let mut stage_a = crate::measured::parallel_rows_with(starts.len(), threads, |i| {
@@ -549,6 +576,7 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
         max_iterations: opts.max_iterations,
         threads: inner,
         deadline: deadline(1.0),
+        cost_target: cost_target(&fine),
         ..lm::LmConfig::default()
     };
     let stage_b = crate::measured::parallel_rows_with(picks.len(), threads, |i| {
