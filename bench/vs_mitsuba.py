@@ -10,9 +10,11 @@ cores. Prints ns/element and the ratio Lacquer / Mitsuba (min and median of the 
 Set-up (done by the script, idempotent): the pinned venv of scripts/python-env.sh
 (.venv-tests: numpy, Mitsuba 3.9.1), libllvm19 with apt-get when missing (Dr.Jit's llvm
 backend aborts with Debian's LLVM 15; needs root) and DRJIT_LIBLLVM_PATH, and liblacquer.so:
-$LACQUER_LIBRARY, else $CARGO_TARGET_DIR or target/release/liblacquer.so, built with
-`cargo build --release -p lacquer-capi` only when missing. The script then re-executes
-itself in the venv.
+$LACQUER_LIBRARY (built elsewhere: the report says its commit is unknown), else
+$CARGO_TARGET_DIR or target/release/liblacquer.so, which the script brings up to date with
+`cargo build --release -p lacquer-capi -p lacquer-cli` on every run (a no-op of about a second
+when nothing changed), so the git commit it prints is the one the library was built from. The
+script then re-executes itself in the venv.
 
 What is compared (same work on both sides):
   * Inputs: n direction pairs, both cosine-distributed in the upper hemisphere, and n
@@ -94,19 +96,21 @@ def find_libllvm19():
 
 
 def find_or_build_library():
+    """The library to time and where it comes from: $LACQUER_LIBRARY as given, else this tree's
+    release build, brought up to date first (cargo rebuilds only what changed), so that a
+    library older than the checked-out sources is never timed under the tree's git commit."""
     given = os.environ.get("LACQUER_LIBRARY")
     if given:
         if not os.path.isfile(given):
             sys.exit(f"LACQUER_LIBRARY={given} does not exist")
-        return given
+        return given, "given by LACQUER_LIBRARY: its commit is unknown"
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR") or ROOT / "target")
     lib = target / "release" / "liblacquer.so"
-    if not lib.is_file():
-        # With the CLI, to share its build (same dependency features; docs/reliability.md).
-        log(f"{lib} missing: cargo build --release -p lacquer-capi -p lacquer-cli")
-        subprocess.run(["cargo", "build", "--release", "-p", "lacquer-capi", "-p", "lacquer-cli"], cwd=ROOT, check=True,
-                       stdout=sys.stderr)
-    return str(lib)
+    # With the CLI, to share its build (same dependency features; docs/reliability.md).
+    log("cargo build --release -p lacquer-capi -p lacquer-cli (brings target/release/liblacquer.so up to date)")
+    subprocess.run(["cargo", "build", "--release", "-p", "lacquer-capi", "-p", "lacquer-cli"], cwd=ROOT, check=True,
+                   stdout=sys.stderr)
+    return str(lib), "built from this tree by the script"
 
 
 def bootstrap():
@@ -114,7 +118,8 @@ def bootstrap():
     proc = subprocess.run(["bash", str(ROOT / "scripts" / "python-env.sh")], check=True,
                           stdout=subprocess.PIPE, text=True)
     venv = proc.stdout.strip().splitlines()[-1]
-    env = dict(os.environ, DRJIT_LIBLLVM_PATH=find_libllvm19(), LACQUER_LIBRARY=find_or_build_library())
+    library, source = find_or_build_library()
+    env = dict(os.environ, DRJIT_LIBLLVM_PATH=find_libllvm19(), LACQUER_LIBRARY=library, LACQUER_LIBRARY_SOURCE=source)
     env[CHILD_MARK] = "1"
     python = os.path.join(venv, "bin", "python")
     os.execve(python, [python, os.path.abspath(__file__), *sys.argv[1:]], env)
@@ -582,6 +587,7 @@ def main():
     inp = make_inputs(np, args.n, args.seed)
     versions = {
         "lacquer": lq.version, "lacquer_abi": lq.abi, "library": os.environ["LACQUER_LIBRARY"],
+        "library_source": os.environ.get("LACQUER_LIBRARY_SOURCE", "unknown"),
         "lacquer_soa_entry_points": lq.has_soa, "lq_set_thread_count": lq.has_thread_count,
         "mitsuba": mi.__version__, "drjit": dr.__version__, "variant": mi.variant(),
         "llvm": ".".join(map(str, dr.detail.llvm_version())), "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
@@ -599,7 +605,8 @@ def main():
     print(f"Machine: {machine['cpu']}, {machine['logical_cpus']} logical CPUs ({', '.join(machine['simd'])}), "
           f"{machine['system']}; load average at start {machine['load_average_start'][0]:.2f}, "
           f"after {allc['load_average_after'][0]:.2f}.  ")
-    print(f"Versions: Lacquer {lq.version} (ABI {lq.abi}, git {versions['git']}; SoA entry points: "
+    print(f"Versions: Lacquer {lq.version} (ABI {lq.abi}; tree at git {versions['git']}, library "
+          f"{versions['library_source']}; SoA entry points: "
           f"{'yes' if lq.has_soa else 'no'}, lq_set_thread_count: {'yes' if lq.has_thread_count else 'no'}), "
           f"Mitsuba {mi.__version__} `{mi.variant()}`, Dr.Jit {dr.__version__} (LLVM {versions['llvm']}), "
           f"numpy {np.__version__}, Python {versions['python']}.  ")
