@@ -529,6 +529,20 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
     if data.is_empty() {
         return Err(Error::Invalid { param: "table".into(), reason: "the table holds no measurement".into() });
     }
+    if let Some(b) = opts.budget_seconds.filter(|b| !(b.is_finite() && *b >= 0.0)) {
+        return Err(Error::Invalid {
+            param: "budget_seconds".into(),
+            reason: format!("{b} is not a number of seconds ≥ 0 (leave it out for no budget)"),
+        });
+    }
+    if let Some(db) = opts.stop_snr_db.filter(|db| !db.is_finite()) {
+        return Err(Error::Invalid {
+            param: "stop_snr_db".into(),
+            reason: format!(
+                "{db} is not a finite number of dB (leave it out to iterate until the fit stops improving)"
+            ),
+        });
+    }
     let threads = opts.threads.max(1);
     let (lo, hi) = model.bounds();
     let coarse = LeastSquares { model, points: subsample(data, opts.coarse_points.max(16), opts.seed, opts.objective) };
@@ -541,8 +555,12 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
             reason: format!("{}: no starting point builds (check the fixed parameters)", model.label()),
         });
     }
-    let deadline =
-        |share: f64| opts.budget_seconds.map(|b| t0 + std::time::Duration::from_secs_f64(b.max(0.0) * share));
+    // A budget too long for a `Duration` or an `Instant` is no deadline.
+    let deadline = |share: f64| {
+        opts.budget_seconds
+            .and_then(|b| std::time::Duration::try_from_secs_f64(b * share).ok())
+            .and_then(|d| t0.checked_add(d))
+    };
     let cost_target = |p: &LeastSquares| opts.stop_snr_db.map(|db| p.signal_cost() * 10f64.powf(-db / 10.0));
     let coarse_cfg = lm::LmConfig {
         max_iterations: opts.coarse_iterations,

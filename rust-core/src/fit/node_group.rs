@@ -367,7 +367,8 @@ pub struct NodeGroupOptions {
     pub max_iterations: usize,
     /// Threads for the Jacobian columns.
     pub threads: usize,
-    /// Stop iterating after this many seconds (the errors are still computed).
+    /// Stop iterating after this many seconds (the errors are still computed; NaN or less
+    /// than 0: stop at once; longer than a `Duration` holds, e.g. infinity: no limit).
     pub budget_seconds: f64,
     /// Samples per direction of the paint's Monte Carlo albedo.
     pub albedo_samples: usize,
@@ -773,7 +774,9 @@ pub fn fit_brdf(
         ftol: 1e-6,
         xtol: 1e-7,
         threads: opts.threads.max(1),
-        deadline: Some(t0 + std::time::Duration::from_secs_f64(opts.budget_seconds.max(0.0))),
+        deadline: std::time::Duration::try_from_secs_f64(opts.budget_seconds.max(0.0))
+            .ok()
+            .and_then(|d| t0.checked_add(d)),
         ..lm::LmConfig::default()
     };
     let result = lm::minimize(&problem, &x0, &lo, &hi, &cfg);

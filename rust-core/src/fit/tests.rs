@@ -34,6 +34,29 @@ fn ward_parameters_are_recovered() {
 }
 
 #[test]
+fn bad_budget_or_stop_is_a_clear_error() {
+    let data = FitData::from_merl(&table_of(r#"{"model": "lambert", "albedo": 0.5}"#));
+    let model = FitModel::parse("lambert").unwrap();
+    let bad = [
+        ("budget_seconds", FitOptions { budget_seconds: Some(f64::NAN), ..quick() }),
+        ("budget_seconds", FitOptions { budget_seconds: Some(f64::INFINITY), ..quick() }),
+        ("budget_seconds", FitOptions { budget_seconds: Some(-1.0), ..quick() }),
+        ("stop_snr_db", FitOptions { stop_snr_db: Some(f64::NAN), ..quick() }),
+        ("stop_snr_db", FitOptions { stop_snr_db: Some(f64::NEG_INFINITY), ..quick() }),
+    ];
+    for (name, opts) in bad {
+        match fit(&model, &data, &opts) {
+            Err(Error::Invalid { param, .. }) => assert_eq!(param, name),
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    // A budget longer than a `Duration` holds is no deadline (it panicked in
+    // `Duration::from_secs_f64`), and the fit runs to its answer.
+    let r = fit(&model, &data, &FitOptions { budget_seconds: Some(1e300), ..quick() }).unwrap();
+    assert!(close(param(&r, "albedo[0]"), 0.5, 1e-3), "{:?}", r.parameters);
+}
+
+#[test]
 fn every_model_refits_a_table_of_its_own() {
     // For every registered model: a table generated at parameters away from its defaults is
     // fitted back by the same model (multi-start from the defaults and Halton points), to the
