@@ -100,6 +100,14 @@ pub struct LmResult {
     pub stop: Stop,
 }
 
+/// The instant `seconds` after `start`, for [`LmConfig::deadline`]: NaN or less than 0 is
+/// `start` itself (stop at once); a time too long for a `Duration` or an `Instant` (e.g.
+/// infinity) is `None`, no deadline.
+#[must_use]
+pub fn deadline_after(start: std::time::Instant, seconds: f64) -> Option<std::time::Instant> {
+    std::time::Duration::try_from_secs_f64(seconds.max(0.0)).ok().and_then(|d| start.checked_add(d))
+}
+
 fn cost_of(r: &[f64]) -> f64 {
     0.5 * r.iter().map(|v| v * v).sum::<f64>()
 }

@@ -555,12 +555,7 @@ pub fn fit(model: &FitModel, data: &FitData, opts: &FitOptions) -> Result<FitRep
             reason: format!("{}: no starting point builds (check the fixed parameters)", model.label()),
         });
     }
-    // A budget too long for a `Duration` or an `Instant` is no deadline.
-    let deadline = |share: f64| {
-        opts.budget_seconds
-            .and_then(|b| std::time::Duration::try_from_secs_f64(b * share).ok())
-            .and_then(|d| t0.checked_add(d))
-    };
+    let deadline = |share: f64| opts.budget_seconds.and_then(|b| lm::deadline_after(t0, b * share));
     let cost_target = |p: &LeastSquares| opts.stop_snr_db.map(|db| p.signal_cost() * 10f64.powf(-db / 10.0));
     let coarse_cfg = lm::LmConfig {
         max_iterations: opts.coarse_iterations,

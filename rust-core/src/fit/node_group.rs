@@ -774,9 +774,7 @@ pub fn fit_brdf(
         ftol: 1e-6,
         xtol: 1e-7,
         threads: opts.threads.max(1),
-        deadline: std::time::Duration::try_from_secs_f64(opts.budget_seconds.max(0.0))
-            .ok()
-            .and_then(|d| t0.checked_add(d)),
+        deadline: lm::deadline_after(t0, opts.budget_seconds),
         ..lm::LmConfig::default()
     };
     let result = lm::minimize(&problem, &x0, &lo, &hi, &cfg);
